@@ -1,0 +1,25 @@
+"""Shape and dtype checks at the package boundary (values are checked by the core)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ._core import InvalidInputError
+
+__all__ = ["InvalidShapeError", "as_float_array"]
+
+
+class InvalidShapeError(InvalidInputError):
+    """An argument has the wrong shape or cannot be read as float64."""
+
+
+def as_float_array(name: str, value, shape: tuple) -> np.ndarray:
+    """``value`` as a C-contiguous float64 array of ``shape`` (-1 matches any length)."""
+    try:
+        a = np.ascontiguousarray(value, dtype=np.float64)
+    except (TypeError, ValueError) as e:
+        raise InvalidShapeError(f"{name}: cannot be read as a float64 array ({e})") from None
+    if a.ndim != len(shape) or any(want not in (-1, got) for want, got in zip(shape, a.shape)):
+        want = "(" + ", ".join("N" if s == -1 else str(s) for s in shape) + ("," if len(shape) == 1 else "") + ")"
+        raise InvalidShapeError(f"{name}: expected shape {want}, got {a.shape}")
+    return a

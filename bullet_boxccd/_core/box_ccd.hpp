@@ -1,0 +1,145 @@
+// Exact time of impact of two boxes under quadratic affine motion: the seed's
+// BMS algorithm (shared/seed/box-ccd-algorithm.txt).
+//
+// Time: callers give t in [t_min, t_max]; inside the core everything runs on the
+// normalised s = (t - t_min) / (t_max - t_min) in [0, 1].
+//
+// Seed vocabulary -> code. The seed's static box S is box A, its moving box M
+// is box B. Both may move: instead of the seed's relative motion M1 M2^-1 (a
+// rational function of t) we keep both in world coordinates, where the
+// Minkowski difference D(s) = A(s) + (-B(s)) has the same facets, and every
+// quantity stays a polynomial in s. A box has three edge directions (the
+// generators): a_i(s) = column i of A's 3x3 part, b_j(s) likewise; g[0..2] =
+// a_0..a_2 and g[3..5] = b_0..b_2. D is a zonotope with these six generators,
+// so it has exactly 15 facet axes, each spanned by two generators, and 30
+// facets (each axis with both signs):
+//   axes 0..2  n = a_{i+1} x a_{i+2}  (face i of A; seed: "OV", octant of M
+//              = vertex of B against vertex of S's SOR = face of A)
+//   axes 3..5  n = b_{j+1} x b_{j+2}  (face j of B against a vertex of A: "VO")
+//   axes 6..14 n = a_i x b_j          (edge of A against edge of B: "EE")
+// The seed's octant switches are the sign changes of the 18 triple products
+// S[0][i][l] = (a_{i+1} x a_{i+2}) . b_l   (a face normal of A crossing the
+//                                          great circle of B's SOR normal to b_l)
+// S[1][j][l] = (b_{j+1} x b_{j+2}) . a_l   (the same with A and B exchanged);
+// every projection of a generator on an axis is one of these, det A, det B or
+// a structural zero, so between consecutive sign changes (a section) every
+// facet's support is a fixed signed sum: the facet is a degree-6 polynomial.
+// Facet k = 2*axis + (0 for +n, 1 for -n):
+//   P_k(s) = +-n.d - sum_g |n.g| h_g,   d = centre(B) - centre(A),
+// and the origin is inside D (the boxes intersect) iff P_k <= 0 for all k.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "poly.hpp"
+
+namespace boxccd {
+
+// Every tolerance of the solver, with its reason (mirrored by the Python
+// Tolerances dataclass, which documents the defaults).
+struct Tolerances {
+    // Boxes closer than gap_rel * (world size of A + world size of B) count as
+    // touching. Small enough that a 1e-9 relative gap is a clear miss.
+    double gap_rel = 1e-12;
+    // Rounding allowance: each facet's evaluation error is bounded by
+    // rounding * DBL_EPSILON * (a magnitude bound of its terms), and that much
+    // is added to the touching tolerance, so rounding can make the answer early,
+    // never late (see README, "Guarantee").
+    double rounding = 64.0;
+    // Cap on advancement steps per section; each step passes one root of one
+    // facet polynomial (at most 30 * 6 of them), so the cap is never reached
+    // in exact arithmetic. If it is, the solver reports contact (conservative).
+    int max_steps = 400;
+};
+
+// Typed input errors (translated to ValueError subclasses in Python).
+struct NonFiniteError : std::runtime_error { using std::runtime_error::runtime_error; };
+struct BoxError : std::runtime_error { using std::runtime_error::runtime_error; };
+struct MotionError : std::runtime_error { using std::runtime_error::runtime_error; };
+struct SingularMotionError : std::runtime_error {
+    double t;
+    SingularMotionError(const std::string &m, double t_) : std::runtime_error(m), t(t_) {}
+};
+struct TimeRangeError : std::runtime_error { using std::runtime_error::runtime_error; };
+
+struct BoxInput {
+    const double *lo;      // (3,) corner (X, Y, Z), the box's own frame
+    const double *hi;      // (3,) corner (X', Y', Z')
+    const double *coeffs;  // (3, 4, 4) row-major: M(t) = C0 + C1 t + C2 t^2
+};
+
+// Argument checks shared by every entry point. `where` prefixes the message
+// (for example "row 17: "); `name` is the argument name ("a", "m_a", ...).
+void check_box(const double *lo, const double *hi, const std::string &name, const std::string &where);
+void check_motion(const double *coeffs, const std::string &name, const std::string &where);
+void check_time_range(double t0, double t1);
+
+enum class Kind : int8_t { OV = 0, VO = 1, EE = 2 };
+
+struct Hit {
+    bool hit = false;
+    bool initial = false;  // already touching at t_min
+    double t = 0.0;        // in the caller's time
+    double s = 0.0;        // normalised
+    int facet = -1;        // 0..29: axis = facet / 2, outward normal +n (even) or -n (odd)
+    // Filled when geometry is asked for: world contact point, unit normal from A
+    // towards B, and the touching features as sign triples over each box's local
+    // axes (-1 = lo side, +1 = hi side, 0 = the feature spans that axis).
+    std::array<double, 3> point{}, normal{};
+    std::array<int8_t, 3> feat_a{}, feat_b{};
+};
+
+// The precomputed polynomials of one query (see the file comment).
+class Problem {
+public:
+    Problem(const BoxInput &a, const BoxInput &b, double t0, double t1, const Tolerances &tol);
+
+    // Raises SingularMotionError if A's or B's 3x3 part degenerates in range.
+    void check_regular(const char *name_a, const char *name_b) const;
+
+    Hit solve(bool want_geometry) const;
+
+    // Section boundaries in s: 0, the octant switches (sorted, unique), 1.
+    std::vector<double> sections() const;
+
+    // The 30 facets at s, with the topology of the section that contains s:
+    // unit outward normals (30, 3), offsets (30,) (facet: n.x = offset, x in D),
+    // and each facet's features as sign triples (see Hit), (30, 3) each.
+    void planes(double s, double *normals, double *offsets, int8_t *feat_a, int8_t *feat_b) const;
+
+    double t0, t1;
+
+private:
+    struct Section {
+        double lo, hi;
+        std::array<Poly, 30> Q;         // facet polynomial minus tau: <= 0 is touching
+        std::array<double, 30> tau;     // touching tolerance + rounding allowance
+        std::array<double, 30> scale;   // |n| at mid-section, to rank facets
+        int8_t sig[15][6];              // topology: sign of n_axis . g at mid-section
+    };
+    Section make_section(double lo, double hi) const;
+    void projection(int axis, int g, const Poly *&p, double &sign) const;
+    bool advance(const Section &sec, double &s, int &last) const;
+    int best_facet(const Section &sec, double s) const;
+    void contact_geometry(const Section &sec, Hit &hit) const;
+
+    Tolerances tol_;
+    PVec g_[6];
+    double h_[6];
+    PVec cA_, cB_, d_;
+    PVec n_[15];
+    Poly det_[2];
+    Poly S_[2][3][3];
+    Poly nd_[15];
+    double gmag_[6];
+    double dmag_;
+    double size_;  // world size used by gap_rel
+};
+
+int axis_generator(int axis, int which);  // the two generators spanning an axis
+
+}  // namespace boxccd

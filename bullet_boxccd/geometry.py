@@ -1,0 +1,76 @@
+"""Boxes and the seed's names for their features.
+
+A box is given by two corners in its own frame, ``lo = (X, Y, Z)`` and
+``hi = (X', Y', Z')`` as in the seed. Faces are named after their planes
+(``X`` is the face in the plane x = lo[0], ``X'`` the one at x = hi[0]), edges
+by their two faces (``XY'``) and vertices by their three faces (``XY'Z``).
+Internally a feature is a sign triple over the local axes: -1 for the lo side,
++1 for the hi side, 0 where the feature spans that axis. No pybullet, no solver.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from itertools import product
+
+import numpy as np
+
+from . import _core
+from ._arrays import as_float_array
+
+__all__ = ["Box", "feature_name"]
+
+_AXES = "XYZ"
+
+
+def feature_name(signs) -> str:
+    """Seed name of the feature with this sign triple: (1, 0, -1) -> "X'Z"."""
+    return "".join(_AXES[i] + ("'" if s > 0 else "") for i, s in enumerate(signs) if s != 0)
+
+
+def _readonly(a: np.ndarray) -> np.ndarray:
+    a.setflags(write=False)
+    return a
+
+
+@dataclass(frozen=True, eq=False)
+class Box:
+    """A solid box, closed, in its own frame.
+
+    Parameters
+    ----------
+    lo, hi : (3,) float
+        The corners (X, Y, Z) and (X', Y', Z'); ``lo < hi`` on every axis.
+    """
+
+    lo: np.ndarray
+    hi: np.ndarray
+
+    def __post_init__(self):
+        lo = np.array(as_float_array("lo", self.lo, (3,)))
+        hi = np.array(as_float_array("hi", self.hi, (3,)))
+        _core.check_box(lo, hi, "box")
+        object.__setattr__(self, "lo", _readonly(lo))
+        object.__setattr__(self, "hi", _readonly(hi))
+
+    @classmethod
+    def centered(cls, half_extents, center=(0.0, 0.0, 0.0)) -> Box:
+        """The box ``center +- half_extents`` (both (3,) float)."""
+        h = as_float_array("half_extents", half_extents, (3,))
+        c = as_float_array("center", center, (3,))
+        return cls(c - h, c + h)
+
+    @property
+    def half_extents(self) -> np.ndarray:
+        return 0.5 * (self.hi - self.lo)
+
+    @property
+    def center(self) -> np.ndarray:
+        return 0.5 * (self.hi + self.lo)
+
+    def vertices(self) -> np.ndarray:
+        """(8, 3) corners in the box frame, ordered by sign triples (-,-,-), (-,-,+), ..."""
+        return np.array([np.where(np.array(s) > 0, self.hi, self.lo) for s in product((-1, 1), repeat=3)])
+
+    def __repr__(self) -> str:
+        return f"Box(lo={self.lo.tolist()}, hi={self.hi.tolist()})"
