@@ -49,7 +49,7 @@ class Box:
     def __post_init__(self):
         lo = np.array(as_float_array("lo", self.lo, (3,)))
         hi = np.array(as_float_array("hi", self.hi, (3,)))
-        _core.check_box(lo, hi, "box")
+        _core.check_box(lo, hi, "Box")
         object.__setattr__(self, "lo", _readonly(lo))
         object.__setattr__(self, "hi", _readonly(hi))
 

@@ -255,6 +255,9 @@ Problem::Section Problem::make_section(double lo, double hi) const {
         const int g1 = axis_generator(ax, 0), g2 = axis_generator(ax, 1);
         const double noise = tol_.rounding * kEps * (dmag_ + hmag) * gmag_[g1] * gmag_[g2];
         const double nn = norm3(n_[ax](mid));
+        // Parallel edges (or a flat box) give an axis with no direction: it can
+        // rank no contact (its facet has zero area).
+        const bool has_direction = nn > 1e-9 * norm3(g_[g1](mid)) * norm3(g_[g2](mid));
         const double tau = tol_.gap_rel * size_ * nn + noise;
         for (int sgn = 0; sgn < 2; ++sgn) {
             const int k = 2 * ax + sgn;
@@ -262,7 +265,7 @@ Problem::Section Problem::make_section(double lo, double hi) const {
             P.c[0] -= tau;  // Q_k = P_k - tau_k: <= 0 means touching within tolerance
             sec.Q[k] = P;
             sec.tau[k] = tau;
-            sec.scale[k] = nn + 1e-300;
+            sec.scale[k] = has_direction ? nn : 0.0;
         }
     }
     return sec;
@@ -282,8 +285,10 @@ bool Problem::advance(const Section &sec, double &s, int &last) const {
         for (int k = 0; k < 30; ++k) {
             if (touching & (1u << k)) continue;
             const double q = sec.Q[k](s);
-            if (q > 0.0 && q / sec.scale[k] > best_v) {
-                best_v = q / sec.scale[k];
+            if (q <= 0.0) continue;
+            const double rank = sec.scale[k] > 0.0 ? q / sec.scale[k] : 0.0;  // separation distance
+            if (best < 0 || rank > best_v) {
+                best_v = rank;
                 best = k;
             }
         }
@@ -305,6 +310,7 @@ int Problem::best_facet(const Section &sec, double s) const {
     int best = 0;
     double best_v = -std::numeric_limits<double>::infinity();
     for (int k = 0; k < 30; ++k) {
+        if (sec.scale[k] == 0.0) continue;
         const double v = (sec.Q[k](s) + sec.tau[k]) / sec.scale[k];
         if (v > best_v) { best_v = v; best = k; }
     }

@@ -118,7 +118,7 @@ private:
         double lo, hi;
         std::array<Poly, 30> Q;         // facet polynomial minus tau: <= 0 is touching
         std::array<double, 30> tau;     // touching tolerance + rounding allowance
-        std::array<double, 30> scale;   // |n| at mid-section, to rank facets
+        std::array<double, 30> scale;   // |n| at mid-section to rank facets; 0 if n has no direction
         int8_t sig[15][6];              // topology: sign of n_axis . g at mid-section
     };
     Section make_section(double lo, double hi) const;

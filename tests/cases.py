@@ -1,0 +1,54 @@
+"""Seeded random box pairs in named families, shared by the oracle and property tests."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from bullet_boxccd import QuadraticMotion
+from bullet_boxccd.motion import rotation_matrix
+from tests.oracle import Case
+
+FAMILIES = ("ballistic", "rotating", "one_static", "both_moving", "off_centre", "thin_plates")
+
+
+def _unit(rng):
+    v = rng.normal(size=3)
+    return v / np.linalg.norm(v)
+
+
+def _pose(rng, position):
+    T = np.eye(4)
+    T[:3, :3] = rotation_matrix(_unit(rng), rng.uniform(0, np.pi))
+    T[:3, 3] = position
+    return T
+
+
+def _box(rng, scale, family):
+    h = scale * rng.uniform(0.2, 1.0, size=3)
+    if family == "thin_plates":
+        h[rng.integers(3)] *= 0.01
+    c = scale * rng.uniform(-2.0, 2.0, size=3) if family == "off_centre" else np.zeros(3)
+    return c - h, c + h
+
+
+def make_case(seed: int, family: str) -> Case:
+    """One pair: B flies from a few box sizes away towards a point near A, so that
+    roughly half the pairs hit. Scale 1e-3..1e3, time ranges other than [0, 1]."""
+    rng = np.random.default_rng([seed, FAMILIES.index(family)])
+    scale = 10.0 ** rng.uniform(-3, 3)
+    t0 = rng.uniform(-5, 5) if rng.random() < 0.7 else 0.0
+    t1 = t0 + (10.0 ** rng.uniform(-1, 1) if rng.random() < 0.7 else 1.0)
+    lo_a, hi_a = _box(rng, scale, family)
+    lo_b, hi_b = _box(rng, scale, family)
+    spin = {"ballistic": 0.0}.get(family, rng.uniform(0, np.pi / 2))  # rotation over the range
+    start_b = _unit(rng) * scale * rng.uniform(2.5, 5.0)
+    aim = scale * rng.uniform(-1.5, 1.5, size=3)
+    pose_a = _pose(rng, np.zeros(3))
+    if family in ("ballistic", "one_static", "off_centre") or family == "thin_plates" and rng.random() < 0.5:
+        m_a = QuadraticMotion.static(pose_a)
+    else:
+        m_a = QuadraticMotion.screw(pose_a, scale * rng.normal(size=3), _unit(rng) * rng.uniform(0, np.pi / 2)
+                                    / (t1 - t0), (t0, t1))
+    pose_b = _pose(rng, start_b)
+    m_b = QuadraticMotion.screw(pose_b, (aim - start_b) / (t1 - t0), _unit(rng) * spin / (t1 - t0), (t0, t1))
+    return Case(lo_a, hi_a, m_a.coeffs.copy(), lo_b, hi_b, m_b.coeffs.copy(), t0, t1)

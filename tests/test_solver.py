@@ -1,0 +1,306 @@
+"""Closed-form cases, the batch entry point and bad input."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from bullet_boxccd import (
+    Box,
+    InvalidBoxError,
+    InvalidInputError,
+    InvalidMotionError,
+    InvalidShapeError,
+    InvalidTimeRangeError,
+    NonFiniteInputError,
+    QuadraticMotion,
+    SingularMotionError,
+    time_of_impact,
+    time_of_impact_batch,
+)
+from bullet_boxccd.motion import rotation_matrix
+from tests.cases import FAMILIES, make_case
+
+CUBE = Box.centered((0.5, 0.5, 0.5))
+STATIC = QuadraticMotion.static()
+
+
+def posed(R, p):
+    T = np.eye(4)
+    T[:3, :3] = R
+    T[:3, 3] = p
+    return T
+
+
+def ballistic(R, p, v):
+    return QuadraticMotion.ballistic(p, v, rotation=R)
+
+
+# ----------------------------------------------------------------- closed form
+def test_pure_translation_contact_time_by_hand():
+    # B (half 0.25) starts at x = 3 and moves at -2: its face X reaches A's X' at
+    # 3 - 2t - 0.25 = 0.5, t = 1.125.
+    b = Box.centered((0.25, 0.25, 0.25))
+    c = time_of_impact(CUBE, STATIC, b, QuadraticMotion.ballistic((3, 0.1, -0.2), (-2, 0, 0)), (0, 2))
+    assert c is not None and not c.initial
+    assert abs(c.t - 1.125) < 1e-11
+    np.testing.assert_allclose(c.normal, (1, 0, 0), atol=1e-12)
+    assert c.feature.kind in ("OV", "VO") and abs(c.point[0] - 0.5) < 1e-11
+
+
+def test_accelerating_translation():
+    # x(t) = 4 - t^2 (acceleration -2): B's face at 4 - t^2 - 0.5 = 0.5 -> t = sqrt(3).
+    c = time_of_impact(CUBE, STATIC, CUBE, QuadraticMotion.ballistic((4, 0, 0), (0, 0, 0), (-2, 0, 0)), (0, 3))
+    assert abs(c.t - np.sqrt(3.0)) < 1e-11
+
+
+def test_face_to_face_with_both_moving():
+    # A moves +x at 1, B moves -x at 3 from x = 5: gap 4 closes at 4 t = 4.
+    c = time_of_impact(CUBE, QuadraticMotion.ballistic((0, 0, 0), (1, 0, 0)), CUBE,
+                       QuadraticMotion.ballistic((5, 0, 0), (-3, 0, 0)), (0, 2))
+    assert abs(c.t - 1.0) < 1e-11
+    np.testing.assert_allclose(c.normal, (1, 0, 0), atol=1e-12)
+
+
+def test_edge_to_edge():
+    # A turned 45 deg about z presents a vertical edge at x = sqrt(2)/2; B turned
+    # 45 deg about y presents a horizontal edge (along y) at x0 - sqrt(2)/2.
+    r = np.sqrt(0.5)
+    m_a = QuadraticMotion.static(posed(rotation_matrix((0, 0, 1), np.pi / 4), (0, 0, 0)))
+    m_b = ballistic(rotation_matrix((0, 1, 0), np.pi / 4), (3, 0, 0), (-2, 0, 0))
+    c = time_of_impact(CUBE, m_a, CUBE, m_b)
+    assert abs(c.t - (3 - 2 * r) / 2) < 1e-11
+    assert c.feature.kind == "EE"
+    assert [len(name.replace("'", "")) for name in c.feature[1:]] == [2, 2]  # an edge of each box
+    np.testing.assert_allclose(c.point, (r, 0, 0), atol=1e-9)
+    np.testing.assert_allclose(c.normal, (1, 0, 0), atol=1e-9)
+
+
+def test_vertex_to_face():
+    # B turned so that its vertex (-,-,-) leads along -x: it sits sqrt(3)/2 from B's centre.
+    R = rotation_matrix(np.cross((-1, -1, -1), (-1, 0, 0)), np.arccos(1 / np.sqrt(3)))
+    np.testing.assert_allclose(R @ np.array([-1, -1, -1]) / np.sqrt(3), (-1, 0, 0), atol=1e-12)
+    c = time_of_impact(CUBE, STATIC, CUBE, ballistic(R, (3, 0.05, 0.05), (-4, 0, 0)))
+    assert abs(c.t - (3 - np.sqrt(3) / 2 - 0.5) / 4) < 1e-11
+    assert c.feature == ("OV", "X'", "XYZ")
+    np.testing.assert_allclose(c.point, (0.5, 0.05, 0.05), atol=1e-9)
+
+
+def test_face_of_b_against_vertex_of_a():
+    R = rotation_matrix(np.cross((1, 1, 1), (1, 0, 0)), np.arccos(1 / np.sqrt(3)))
+    c = time_of_impact(CUBE, QuadraticMotion.static(posed(R, (0, 0, 0))), CUBE,
+                       QuadraticMotion.ballistic((3, 0, 0), (-4, 0, 0)))
+    assert abs(c.t - (3 - np.sqrt(3) / 2 - 0.5) / 4) < 1e-11
+    assert c.feature == ("VO", "X'Y'Z'", "X")
+
+
+def test_touching_at_range_start_is_initial():
+    # M(2) puts B at x = 1: face to face with A, then moving away.
+    c = time_of_impact(CUBE, STATIC, CUBE, QuadraticMotion.ballistic((-1.0, 0, 0), (1, 0, 0)), (2.0, 3.0))
+    assert c.initial and c.t == 2.0
+
+
+def test_overlapping_at_start_is_initial_with_least_penetration_normal():
+    c = time_of_impact(CUBE, STATIC, CUBE, QuadraticMotion.ballistic((0.9, 0.2, 0.0), (0, 0, 0)), (0, 1))
+    assert c.initial and c.t == 0.0
+    np.testing.assert_allclose(c.normal, (1, 0, 0), atol=1e-12)
+
+
+def test_touching_at_range_end():
+    # Contact exactly at t = 1: B's face reaches x = 0.5 at t = 1.
+    c = time_of_impact(CUBE, STATIC, CUBE, QuadraticMotion.ballistic((3.0, 0, 0), (-2.0, 0, 0)), (0, 1))
+    assert c is not None and not c.initial and abs(c.t - 1.0) < 1e-11
+    assert time_of_impact(CUBE, STATIC, CUBE, QuadraticMotion.ballistic((3.0, 0, 0), (-2.0, 0, 0)), (0, 0.999)) \
+        is None
+
+
+def parabola(gap):
+    """B above A on a parabola whose lowest point (t = 0.5) leaves ``gap`` above A's top face."""
+    return QuadraticMotion.ballistic((0.3, 1.0 + gap + 0.25, 0.1), (0, -1.0, 0), (0, 2.0, 0))
+
+
+def test_grazing_at_zero_gap_is_a_hit():
+    c = time_of_impact(CUBE, STATIC, CUBE, parabola(0.0))
+    assert c is not None
+    # A double root: t is ill-conditioned, the gap is not. Check the gap at c.t.
+    y = parabola(0.0).at(c.t)[1, 3]
+    assert 0 <= y - 1.0 <= 1e-11
+    assert abs(c.t - 0.5) < 1e-5
+    np.testing.assert_allclose(c.normal, (0, 1, 0), atol=1e-9)
+
+
+def test_grazing_at_1e9_gap_is_a_miss():
+    assert time_of_impact(CUBE, STATIC, CUBE, parabola(1e-9)) is None
+
+
+def test_sliding_face_on_face_contact_is_found_when_faces_meet():
+    # B slides along A's top face at exactly zero gap, coming from the left.
+    m_b = QuadraticMotion.ballistic((-3.0, 1.0, 0.0), (6.0, 0.0, 0.0))
+    c = time_of_impact(CUBE, STATIC, CUBE, m_b)
+    assert abs(c.t - 2.0 / 6.0) < 1e-11
+
+
+def test_rotating_plank_sweeps_the_cube():
+    # A plank spinning a quarter turn about z sweeps a cube at radius 3: first
+    # contact when the plank's far edge rotates into the cube's near face.
+    plank = Box.centered((5.0, 0.1, 0.5))
+    m = QuadraticMotion.screw(np.eye(4), (0, 0, 0), (0, 0, np.pi / 2))
+    c = time_of_impact(plank, m, CUBE, QuadraticMotion.static(posed(np.eye(3), (0.0, 3.0, 0.0))))
+    assert c is not None and 0 < c.t < 1
+
+
+# ------------------------------------------------------------------------ batch
+def test_batch_agrees_with_single_queries_bit_for_bit():
+    cases = [make_case(seed, fam) for fam in FAMILIES for seed in range(30)]
+    lo_a = np.array([c.lo_a for c in cases])
+    hi_a = np.array([c.hi_a for c in cases])
+    lo_b = np.array([c.lo_b for c in cases])
+    hi_b = np.array([c.hi_b for c in cases])
+    # Reparametrise every motion onto [0, 1] so one t_range serves all rows.
+    ca = np.array([QuadraticMotion(c.coeffs_a).reparametrized(c.t1 - c.t0, c.t0).coeffs for c in cases])
+    cb = np.array([QuadraticMotion(c.coeffs_b).reparametrized(c.t1 - c.t0, c.t0).coeffs for c in cases])
+    batch = time_of_impact_batch(lo_a, hi_a, ca, lo_b, hi_b, cb)
+    assert batch.shape == (len(cases),) and batch.dtype == np.float64
+    hits = 0
+    for i in range(len(cases)):
+        single = time_of_impact(Box(lo_a[i], hi_a[i]), QuadraticMotion(ca[i]), Box(lo_b[i], hi_b[i]),
+                                QuadraticMotion(cb[i]))
+        if single is None:
+            assert np.isnan(batch[i]), i
+        else:
+            assert batch[i] == single.t, i
+            hits += 1
+    assert 0 < hits < len(cases)
+
+
+def test_batch_is_deterministic_across_batch_sizes():
+    cases = [make_case(seed, "both_moving") for seed in range(50)]
+    args = [np.array([getattr(c, f) for c in cases]) for f in ("lo_a", "hi_a")]
+    ca = np.array([QuadraticMotion(c.coeffs_a).reparametrized(c.t1 - c.t0, c.t0).coeffs for c in cases])
+    cb = np.array([QuadraticMotion(c.coeffs_b).reparametrized(c.t1 - c.t0, c.t0).coeffs for c in cases])
+    lo_b = np.array([c.lo_b for c in cases])
+    hi_b = np.array([c.hi_b for c in cases])
+    whole = time_of_impact_batch(*args, ca, lo_b, hi_b, cb)
+    parts = np.concatenate([time_of_impact_batch(args[0][i:i + 7], args[1][i:i + 7], ca[i:i + 7], lo_b[i:i + 7],
+                                                 hi_b[i:i + 7], cb[i:i + 7]) for i in range(0, 50, 7)])
+    np.testing.assert_array_equal(whole, parts)
+
+
+def test_empty_batch():
+    out = time_of_impact_batch(np.zeros((0, 3)), np.zeros((0, 3)), np.zeros((0, 3, 4, 4)), np.zeros((0, 3)),
+                               np.zeros((0, 3)), np.zeros((0, 3, 4, 4)))
+    assert out.shape == (0,)
+
+
+def good_rows(n):
+    lo = -np.ones((n, 3))
+    hi = np.ones((n, 3))
+    c = np.zeros((n, 3, 4, 4))
+    c[:, 0] = np.eye(4)
+    cb = c.copy()
+    cb[:, 0, 0, 3] = 5.0
+    return [lo, hi, c, lo.copy(), hi.copy(), cb]
+
+
+def test_batch_names_every_bad_row():
+    rows = good_rows(10)
+    rows[0][3, 1] = 2.0  # lo >= hi
+    rows[2][7, 1, 0, 0] = np.nan
+    with pytest.raises(InvalidBoxError) as e:
+        time_of_impact_batch(*rows)
+    msg = str(e.value)
+    assert msg.startswith("row 3: lo_a/hi_a: lo[1] = 2 >= hi[1] = 1"), msg and "2 bad row(s): 3, 7" in msg
+
+
+def test_batch_reports_a_singular_row():
+    rows = good_rows(4)
+    rows[5][2, 1, 0, 0] = -2.0  # B's x axis scales by 1 - 2t: collapses at t = 0.5
+    with pytest.raises(SingularMotionError) as e:
+        time_of_impact_batch(*rows)
+    assert "row 2: coeffs_b" in str(e.value) and abs(e.value.t - 0.5) < 1e-9
+
+
+def test_batch_shapes():
+    rows = good_rows(3)
+    rows[4] = np.ones((2, 3))
+    with pytest.raises(InvalidShapeError, match="disagree on N"):
+        time_of_impact_batch(*rows)
+    rows = good_rows(3)
+    rows[2] = np.zeros((3, 4, 4))
+    with pytest.raises(InvalidShapeError, match=r"coeffs_a: expected shape \(N, 3, 4, 4\), got \(3, 4, 4\)"):
+        time_of_impact_batch(*rows)
+
+
+def test_batch_accepts_non_contiguous_and_other_dtypes():
+    rows = good_rows(6)
+    rows[0] = np.asfortranarray(rows[0]).astype(np.float32)
+    rows[2] = np.concatenate([rows[2], rows[2]])[::2]
+    out = time_of_impact_batch(*rows)
+    assert out.shape == (6,) and np.all(np.isnan(out))
+
+
+# ------------------------------------------------------------------- bad input
+@pytest.mark.parametrize(
+    "make, error, text",
+    [
+        (lambda: Box((0, 0, np.nan), (1, 1, 1)), NonFiniteInputError, r"Box.lo\[2\] is nan"),
+        (lambda: Box((0, 0, 0), (1, np.inf, 1)), NonFiniteInputError, r"Box.hi\[1\] is inf"),
+        (lambda: Box((0, 2, 0), (1, 1, 1)), InvalidBoxError, r"lo\[1\] = 2 >= hi\[1\] = 1"),
+        (lambda: Box((0, 1, 0), (1, 1, 1)), InvalidBoxError, "y axis"),
+        (lambda: Box((0, 0), (1, 1)), InvalidShapeError, r"lo: expected shape \(3,\), got \(2,\)"),
+        (lambda: Box("abc", (1, 1, 1)), InvalidShapeError, "lo: cannot be read"),
+        (lambda: QuadraticMotion(np.zeros((3, 4, 4))), InvalidMotionError, r"coeffs\[0, 3, 3\] is 0; expected 1"),
+        (lambda: QuadraticMotion(np.zeros((2, 4, 4))), InvalidShapeError, r"expected shape \(3, 4, 4\)"),
+    ],
+)
+def test_bad_construction(make, error, text):
+    with pytest.raises(error, match=text):
+        make()
+
+
+def test_non_affine_velocity_row():
+    c = QuadraticMotion.static().coeffs.copy()
+    c[1, 3, 0] = 1e-3
+    with pytest.raises(InvalidMotionError, match=r"coeffs\[1, 3, 0\] is 0.001"):
+        QuadraticMotion(c)
+
+
+def test_nan_in_motion_names_the_entry():
+    c = QuadraticMotion.static().coeffs.copy()
+    c[2, 1, 3] = np.nan
+    with pytest.raises(NonFiniteInputError, match=r"coeffs\[2, 1, 3\] is nan"):
+        QuadraticMotion(c)
+
+
+@pytest.mark.parametrize("t_range", [(1.0, 1.0), (1.0, 0.0), (0.0, np.inf), (np.nan, 1.0), (-1e308, 1e308)])
+def test_bad_time_range(t_range):
+    with pytest.raises(InvalidTimeRangeError, match="t_range"):
+        time_of_impact(CUBE, STATIC, CUBE, STATIC, t_range)
+
+
+def test_singular_motion_names_the_time():
+    c = QuadraticMotion.static().coeffs.copy()
+    c[1, 2, 2] = -1.0  # z scale 1 - t: the box collapses to a square at t = 1
+    with pytest.raises(SingularMotionError, match=r"m_b: .*singular at t = (1 |0\.99999999)") as e:
+        time_of_impact(CUBE, STATIC, CUBE, QuadraticMotion(c), (0.0, 2.0))
+    assert e.value.t == pytest.approx(1.0, abs=1e-12)  # early by the rounding allowance at most
+    assert isinstance(e.value, InvalidMotionError) and isinstance(e.value, ValueError)
+    # Outside the range it is fine.
+    assert time_of_impact(CUBE, STATIC, CUBE, QuadraticMotion(c), (0.0, 0.5)) is not None
+
+
+def test_overflowing_magnitudes_are_a_typed_error():
+    big = Box.centered((1e300, 1e300, 1e300))
+    with pytest.raises(NonFiniteInputError, match="overflow"):
+        time_of_impact(big, QuadraticMotion.static(np.diag([1e300, 1e300, 1e300, 1.0])), CUBE, STATIC)
+
+
+def test_wrong_argument_types():
+    with pytest.raises(InvalidInputError, match="m_a: expected a QuadraticMotion"):
+        time_of_impact(CUBE, np.eye(4), CUBE, STATIC)
+
+
+def test_errors_are_value_errors():
+    for e in (InvalidBoxError, InvalidMotionError, InvalidShapeError, InvalidTimeRangeError, NonFiniteInputError,
+              SingularMotionError):
+        assert issubclass(e, InvalidInputError) and issubclass(e, ValueError)
