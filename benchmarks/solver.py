@@ -7,16 +7,19 @@ On seeded random box pairs (numpy ``Generator``), for three motion families
 * ``trans``: box A static at the origin, box B translating (rigid, ballistic, no spin),
 * ``rot``:   box A static, box B translating and spinning (``QuadraticMotion.screw``,
   angular speed up to 0.95 pi rad over t in [0, 1]),
-* ``both``:  both boxes translating and spinning,
+* ``both``:  both boxes translating (half the relative velocity each) and spinning.
 
-and separately for the pairs that hit within t in [0, 1] and those that stay apart
-(classified by our solver's answer):
+Box half extents are uniform in [0.05, 1]; B starts at distance 2..6 r from A (r = sum
+of the two half diagonals, so no pair starts in contact) and heads for a random aim
+point within 0.8 r of A's centre, reaching it at t = 1 / U(0.3, 1.5); about half of
+the pairs hit. Results are reported separately for the pairs that hit within t in
+[0, 1] and those that stay apart (classified by our solver's answer):
 
-* ``ours (single)``: median latency of one ``time_of_impact`` call from Python
+* ``ours time_of_impact``: median latency of one ``time_of_impact`` call from Python
   (per pair: median over repeats of a timed loop; then the median over pairs),
-* ``ours (batch)``: throughput of ``time_of_impact_batch`` on one array of pairs
-  (pairs/s, one core, best of 5),
-* ``fcl <motion>``: python-fcl ``continuousCollide`` on the same boxes between the
+* ``ours time_of_impact_batch``: throughput of ``time_of_impact_batch`` on one array
+  of pairs (pairs/s, one core, best of 5),
+* ``fcl CA <motion>``: python-fcl ``continuousCollide`` on the same boxes between the
   same rigid start and end poses, with its conservative-advancement solver
   (``CCDC_CONSERVATIVE_ADVANCEMENT``) and each of its motion types ``CCDM_TRANS``
   (translation only: it ignores the spin, as intended), ``CCDM_LINEAR`` (FCL's
@@ -53,12 +56,12 @@ Targets (printed beside the measurements): single-query latency < 3 us; batch
 
 Run
 ---
-    cd /work/main && PYTHONPATH=/work/main python3 benchmarks/solver.py            # ~2-3 min
-    cd /work/main && PYTHONPATH=/work/main python3 benchmarks/solver.py --quick    # ~20 s
+    cd /work/main && PYTHONPATH=/work/main python3 benchmarks/solver.py            # ~1 min
+    cd /work/main && PYTHONPATH=/work/main python3 benchmarks/solver.py --quick    # ~10 s
 
 Options: ``--seed`` (default 12345), ``--n`` pairs per family for the single-query,
 FCL and reference parts (default 2000; 400 with ``--quick``), ``--batch`` pairs per
-family for the throughput part (default 20000), ``--samples``, ``--gjk``
+family for the throughput part (default 20000; 5000 with ``--quick``), ``--samples``, ``--gjk``
 (FCL's GJK solver, ``libccd`` = FCL's default, or ``indep``), ``--csv``.
 The table is markdown and is also written to ``benchmarks/results/solver.csv``.
 This is a benchmark, not a test: it asserts nothing about timings.
@@ -68,6 +71,7 @@ from __future__ import annotations
 
 import argparse
 import csv
+import hashlib
 import math
 import os
 import platform
@@ -77,7 +81,6 @@ import time
 
 import numpy as np
 
-import bullet_boxccd
 from bullet_boxccd import Box, QuadraticMotion, time_of_impact, time_of_impact_batch
 from bullet_boxccd import _core
 
@@ -232,7 +235,9 @@ def check_against_api(p: dict, k: int = 5):
                 m = QuadraticMotion.ballistic(p0, v, rotation=R0)
             err = np.max(np.abs(m.coeffs - p["c" + which][i]))
             if err > 1e-12 * (1 + np.max(np.abs(m.coeffs))):
-                raise RuntimeError(f"generator disagrees with QuadraticMotion constructors (pair {i}, {which}): {err}")
+                raise RuntimeError(
+                    f"generator disagrees with QuadraticMotion constructors (pair {i}, {which}): {err}"
+                )
 
 
 # --------------------------------------------------------------------------------------
@@ -467,11 +472,14 @@ def machine_info() -> list[str]:
     except OSError:
         pass
     fcl_version = getattr(fcl, "__version__", "?") if fcl is not None else "not installed"
+    with open(_core.__file__, "rb") as f:
+        core_sha = hashlib.sha256(f.read()).hexdigest()[:12]
+    core_time = time.strftime("%Y-%m-%d %H:%M:%S UTC", time.gmtime(os.path.getmtime(_core.__file__)))
     return [
         f"platform: {platform.platform()}",
         f"cpu: {cpu} ({os.cpu_count()} logical cpus)",
         f"python {platform.python_version()}, numpy {np.__version__}, python-fcl {fcl_version}, "
-        f"bullet_boxccd core {os.path.basename(_core.__file__)}",
+        f"bullet_boxccd core {os.path.basename(_core.__file__)} (sha256 {core_sha}, built {core_time})",
     ]
 
 
@@ -493,7 +501,10 @@ def g20(x) -> str:
 
 def reproduce_line(p: dict, i: int) -> str:
     ha, hb, ca, cb = p["ha"][i], p["hb"][i], p["ca"][i], p["cb"][i]
-    L = lambda a: "[" + ", ".join(L(x) if isinstance(x, np.ndarray) else g20(x) for x in a) + "]"  # noqa: E731
+
+    def L(a):
+        return "[" + ", ".join(L(x) if isinstance(x, np.ndarray) else g20(x) for x in a) + "]"
+
     return (
         f"a = Box.centered({L(ha)}); b = Box.centered({L(hb)}); "
         f"ma = QuadraticMotion(np.array({L(ca)})); mb = QuadraticMotion(np.array({L(cb)}))"
@@ -559,7 +570,15 @@ def main(argv=None):
         f"(the difference is the Python wrapper)"
     )
 
-    rows = []
+    rows = [
+        dict(family="-", cls=cls, method=method, latency_us=ns / 1e3, rate=1e9 / ns)
+        for cls, method, ns in (
+            ("-", "Python no-op call (4 args)", ov_noop),
+            ("-", "trivial nanobind call", ov_core),
+            ("apart", "_core.solve (no wrapper), simple miss", ov_raw),
+            ("apart", "time_of_impact, same simple miss", ov_api),
+        )
+    ]
     disagreements = []
     notes = []
     for fam in range(len(FAMILIES)):
@@ -577,12 +596,15 @@ def main(argv=None):
         t_single = np.array([(lambda c: np.nan if c is None else c.t)(time_of_impact(*o)) for o in objs])
         same = (np.isnan(t_single) == np.isnan(t_ours)) & (np.isnan(t_ours) | (t_single == t_ours))
         for i in np.nonzero(~same)[0]:
-            disagreements.append((fname, int(i), "single != batch", f"single {t_single[i]!r} batch {t_ours[i]!r}", p))
+            why = f"single {float(t_single[i])!r} batch {float(t_ours[i])!r}"
+            disagreements.append((fname, int(i), "single != batch", why, p))
 
         # reference (quadratic motion) and checks of our answers
         ref = reference(p, samples, desc=f"{fname}: reference")
         st = ref["status"]
-        ref_rigid = reference(p, samples, rigid=True, desc=f"{fname}: rigid reference") if fname != "trans" else ref
+        ref_rigid = ref
+        if fname != "trans":
+            ref_rigid = reference(p, samples, rigid=True, desc=f"{fname}: rigid reference")
         g_at = np.full(n, np.nan)
         idx = np.nonzero(ours_hit)[0]
         if len(idx):
@@ -592,11 +614,14 @@ def main(argv=None):
             if st[i] == "hit" and not ours_hit[i]:
                 why = f"ours: no hit; reference: intersecting at sample t={ref['first'][i]:.6g}"
             elif st[i] == "miss" and ours_hit[i]:
-                why = f"ours: hit at t={t_ours[i]!r}; reference: min gap {ref['mingap'][i]:.3e} > margin {ref['margin'][i]:.3e}"
+                why = (
+                    f"ours: hit at t={float(t_ours[i])!r}; reference: min gap {ref['mingap'][i]:.3e}"
+                    f" > margin {ref['margin'][i]:.3e}"
+                )
             elif ours_hit[i] and st[i] == "hit" and ref["first"][i] < t_ours[i] - 1e-12:
-                why = f"ours: t={t_ours[i]!r} later than intersecting sample t={ref['first'][i]!r}"
+                why = f"ours: t={float(t_ours[i])!r} later than intersecting sample t={ref['first'][i]:.17g}"
             elif ours_hit[i] and g_at[i] > 1e-6 * p["r"][i]:
-                why = f"ours: t={t_ours[i]!r} but SAT gap there is {g_at[i]:.3e} (r={p['r'][i]:.3g})"
+                why = f"ours: t={float(t_ours[i])!r} but SAT gap there is {g_at[i]:.3e} (r={p['r'][i]:.3g})"
             if why:
                 disagreements.append((fname, i, "ours vs reference", why, p))
 
@@ -629,6 +654,7 @@ def main(argv=None):
                     method="ours time_of_impact",
                     latency_us=statistics.median(lat) / 1e3 if ns else float("nan"),
                     p90_us=float(np.percentile(lat, 90)) / 1e3 if ns else float("nan"),
+                    mean_us=float(np.mean(lat)) / 1e3 if ns else float("nan"),
                     rate=1e9 / statistics.median(lat) if ns else float("nan"),
                     target=f"latency < {TARGET_LATENCY_US:g} us",
                     misses=m_o,
@@ -665,6 +691,7 @@ def main(argv=None):
                         method=f"fcl CA {mo}",
                         latency_us=statistics.median(lat_f) / 1e3 if ns else float("nan"),
                         p90_us=float(np.percentile(lat_f, 90)) / 1e3 if ns else float("nan"),
+                        mean_us=float(np.mean(lat_f)) / 1e3 if ns else float("nan"),
                         rate=1e9 / statistics.median(lat_f) if ns else float("nan"),
                         dt_median=float(np.median(dt)) if len(dt) else float("nan"),
                         dt_max=float(np.max(dt)) if len(dt) else float("nan"),
@@ -679,9 +706,10 @@ def main(argv=None):
                 )
         notes.append(
             f"{fname}: {n} pairs, ours hit {int(ours_hit.sum())}, apart {int((~ours_hit).sum())}; reference "
-            f"hit {int(np.sum(st == 'hit'))}, miss {int(np.sum(st == 'miss'))}, ambiguous {int(np.sum(st == 'ambig'))}; "
-            f"initial contacts {int(np.sum(t_ours == 0.0))}; max |SAT gap at our t| / r = "
-            f"{np.nanmax(np.abs(g_at) / p['r']) if ours_hit.any() else float('nan'):.2e}; "
+            f"hit {int(np.sum(st == 'hit'))}, miss {int(np.sum(st == 'miss'))}, "
+            f"ambiguous {int(np.sum(st == 'ambig'))}; "
+            f"initial contacts {int(np.sum(t_ours == 0.0))}; SAT gap at our t / r in "
+            f"[{np.nanmin(g_at / p['r']):.2e}, {np.nanmax(g_at / p['r']):.2e}] (> 0: early, as guaranteed); "
             f"batch set {len(t_all)} pairs, {int(big_hit.sum())} hit"
         )
 
@@ -693,6 +721,7 @@ def main(argv=None):
         ("pairs", "pairs", None),
         ("latency_us", "median us/query", "us"),
         ("p90_us", "p90 us", "us"),
+        ("mean_us", "mean us", "us"),
         ("rate", "queries/s", "rate"),
         ("target", "target", None),
         ("dt_median", "median abs(t-ours)", "dt"),
@@ -707,6 +736,7 @@ def main(argv=None):
         ("ambig_rigid", "ambig (rigid ref)", None),
     ]
     for r in rows:
+        r.setdefault("target", "")
         if r["method"].startswith("ours") and "batch" not in r["method"]:
             r["target"] += " " + ("MET" if r["latency_us"] < TARGET_LATENCY_US else "not met")
         if "batch" in r["method"]:
@@ -718,11 +748,14 @@ def main(argv=None):
         print("| " + " | ".join(fmt(r.get(k), kind) for k, _, kind in cols) + " |")
     print()
     print(
-        "class = our solver's answer. misses / false hits: against the dense SAT reference on the quadratic motion our "
-        "solver gets (ambiguous pairs excluded); '(rigid ref)': the same test on the rigid motion FCL's end poses "
-        "describe (translate + spin about the moving origin, what CCDM_LINEAR follows; CCDM_TRANS ignores the spin and "
-        "CCDM_SCREW takes another path between the same poses). errors: FCL exceptions. Batch rows: queries/s = "
-        "pairs/s of one time_of_impact_batch call (best of 5, one core); us/query = its inverse."
+        "class = our solver's answer. misses / false hits: against the dense SAT reference on the quadratic "
+        "motion our solver gets (ambiguous pairs excluded); '(rigid ref)': the same test on the rigid motion "
+        "FCL's end poses describe (translate + spin about the moving origin, what CCDM_LINEAR follows; "
+        "CCDM_TRANS ignores the spin and CCDM_SCREW takes another path between the same poses). errors: FCL "
+        "exceptions. Batch rows: queries/s = pairs/s of one time_of_impact_batch call (best of 5, one core); "
+        "us/query = its inverse (a mean: compare with 'mean us' of the single rows). Rows with family '-': "
+        "call-overhead baselines (a Python no-op with the same 4 arguments, a trivial call into the compiled "
+        "core, and the raw core call vs the public wrapper on one easy miss)."
     )
     for line in notes:
         print("  " + line)
@@ -735,18 +768,17 @@ def main(argv=None):
             print(f"  family {fname} (generator index {FAMILIES.index(fname)}), pair {i}: {kind}: {why}")
             print("    " + reproduce_line(p, i))
     else:
-        print("our solver agrees with the dense-sampling reference on every unambiguous pair (and single == batch).")
+        print("our solver agrees with the dense-sampling reference on all unambiguous pairs; single == batch")
 
     # ---- CSV ----
     os.makedirs(os.path.dirname(os.path.abspath(args.csv)), exist_ok=True)
     with open(args.csv, "w", newline="") as f:
         w = csv.writer(f)
-        w.writerow(["seed", args.seed, "n", n, "batch", nbatch, "samples", samples, "gjk", args.gjk])
-        for line in info:
-            w.writerow(["#", line])
-        w.writerow([k for k, _, _ in cols])
+        meta = dict(seed=args.seed, n=n, batch=nbatch, samples=samples, fcl_gjk=args.gjk)
+        meta["machine"] = " | ".join(info)
+        w.writerow([k for k, _, _ in cols] + list(meta))
         for r in rows:
-            w.writerow(["" if r.get(k) is None else r.get(k) for k, _, _ in cols])
+            w.writerow(["" if r.get(k) is None else r.get(k) for k, _, _ in cols] + list(meta.values()))
     dpath = os.path.join(os.path.dirname(os.path.abspath(args.csv)), "solver_disagreements.csv")
     if disagreements:
         with open(dpath, "w", newline="") as f:

@@ -9,6 +9,8 @@ namespace boxccd {
 
 namespace {
 
+constexpr double kNone = std::numeric_limits<double>::infinity();
+
 std::string num(double v) {
     char buf[40];
     std::snprintf(buf, sizeof buf, "%.17g", v);
@@ -119,71 +121,88 @@ Problem::Problem(const BoxInput &a, const BoxInput &b, double t0_, double t1_, c
     cA_ = centre[0];
     cB_ = centre[1];
     for (int r = 0; r < 3; ++r) d_.x[r] = cB_.x[r] - cA_.x[r];
-    size_ = 0.0;
+    size_ = hmag_ = 0.0;
     for (int g = 0; g < 6; ++g) {
         gmag_[g] = g_[g].magnitude();
+        hmag_ += h_[g] * gmag_[g];
         size_ += h_[g] * norm3(g_[g](0.5));
     }
-    for (int ax = 0; ax < 15; ++ax) {
-        n_[ax] = cross(g_[axis_generator(ax, 0)], g_[axis_generator(ax, 1)]);
-        nd_[ax] = dot(n_[ax], d_);
+    for (int q = 0; q < 2; ++q) {
+        n_[3 * q] = cross(g_[3 * q + 1], g_[3 * q + 2]);
+        proj_[kDet + q] = dot<2, 4>(g_[3 * q], n_[3 * q]);
     }
-    det_[0] = dot(g_[0], n_[0]);
-    det_[1] = dot(g_[3], n_[3]);
-    for (int i = 0; i < 3; ++i)
-        for (int l = 0; l < 3; ++l) {
-            S_[0][i][l] = dot(n_[i], g_[3 + l]);
-            S_[1][i][l] = dot(n_[3 + i], g_[l]);
-        }
     // Inputs near the top of the double range overflow in these products;
     // say so instead of returning nonsense.
-    bool ok = finite_poly(det_[0]) && finite_poly(det_[1]) && std::isfinite(dmag_) && std::isfinite(size_);
-    for (int ax = 0; ax < 15; ++ax) ok = ok && finite_poly(nd_[ax]);
-    for (int q = 0; q < 2; ++q)
-        for (int i = 0; i < 3; ++i)
-            for (int l = 0; l < 3; ++l) ok = ok && finite_poly(S_[q][i][l]);
+    const bool ok = finite_poly(proj_[kDet]) && finite_poly(proj_[kDet + 1]) && std::isfinite(dmag_ * hmag_) &&
+                    std::isfinite(size_) && std::isfinite(dmag_ + hmag_) &&
+                    std::isfinite((dmag_ + hmag_) * gmag_[0] * gmag_[3] * gmag_[1] * gmag_[4]);
     if (!ok)
         throw NonFiniteError(
             "the boxes' extents, positions or motion coefficients are too large: intermediate products "
             "overflow double precision");
 }
 
-// The projection n_axis . g as one of the precomputed polynomials, or nullptr
-// for a structural zero (a generator that spans the axis' own facet).
-void Problem::projection(int axis, int g, const Poly *&p, double &sign) const {
-    p = nullptr;
-    sign = 1.0;
-    if (axis < 3) {
-        if (g < 3) { if (g == axis) p = &det_[0]; }
-        else p = &S_[0][axis][g - 3];
-        return;
+void Problem::build_facet_terms() const {
+    if (terms_built_) return;
+    for (int ax = 0; ax < 15; ++ax) {
+        if (ax != 0 && ax != 3) n_[ax] = cross(g_[axis_generator(ax, 0)], g_[axis_generator(ax, 1)]);
+        nd_[ax] = dot<4, 2>(n_[ax], d_);
     }
-    if (axis < 6) {
-        const int j = axis - 3;
-        if (g >= 3) { if (g - 3 == j) p = &det_[1]; }
-        else p = &S_[1][j][g];
-        return;
+    for (int ax = 0; ax < 15; ++ax)
+        noise_[ax] = tol_.rounding * kEps * (dmag_ + hmag_) * gmag_[axis_generator(ax, 0)] *
+                     gmag_[axis_generator(ax, 1)];
+    for (int i = 0; i < 3; ++i)
+        for (int l = 0; l < 3; ++l) {
+            proj_[3 * i + l] = dot<4, 2>(n_[i], g_[3 + l]);
+            proj_[9 + 3 * i + l] = dot<4, 2>(n_[3 + i], g_[l]);
+        }
+    terms_built_ = true;
+}
+
+// The projection n_axis . g as one of the 20 shared polynomials (or a
+// structural zero: a generator that spans the axis' own facet).
+namespace {
+struct Projection {
+    int8_t index;  // into Problem::proj_, -1 for a structural zero
+    int8_t sign;
+};
+struct ProjectionTable {
+    Projection p[15][6];
+    ProjectionTable() {
+        for (int ax = 0; ax < 15; ++ax)
+            for (int g = 0; g < 6; ++g) p[ax][g] = compute(ax, g);
     }
-    const int i = (axis - 6) / 3, j = (axis - 6) % 3;
-    if (g < 3) {
-        // (a_i x b_j) . a_k = b_j . (a_k x a_i) = +-S[0][m][j], m the third index.
-        const int k = g;
-        if (k == i) return;
-        p = &S_[0][3 - k - i][j];
-        sign = (i == (k + 1) % 3) ? 1.0 : -1.0;
-    } else {
+    static Projection compute(int axis, int g) {
+        const int8_t kDet = 18;
+        if (axis < 3) {
+            if (g >= 3) return {static_cast<int8_t>(3 * axis + (g - 3)), 1};
+            return {g == axis ? kDet : int8_t(-1), 1};
+        }
+        if (axis < 6) {
+            const int j = axis - 3;
+            if (g < 3) return {static_cast<int8_t>(9 + 3 * j + g), 1};
+            return {g - 3 == j ? int8_t(kDet + 1) : int8_t(-1), 1};
+        }
+        const int i = (axis - 6) / 3, j = (axis - 6) % 3;
+        if (g < 3) {
+            // (a_i x b_j) . a_k = b_j . (a_k x a_i) = +-S[0][m][j], m the third index.
+            const int k = g;
+            if (k == i) return {-1, 1};
+            return {static_cast<int8_t>(3 * (3 - k - i) + j), static_cast<int8_t>(i == (k + 1) % 3 ? 1 : -1)};
+        }
         // (a_i x b_j) . b_l = a_i . (b_j x b_l) = +-S[1][m][i].
         const int l = g - 3;
-        if (l == j) return;
-        p = &S_[1][3 - j - l][i];
-        sign = (l == (j + 1) % 3) ? 1.0 : -1.0;
+        if (l == j) return {-1, 1};
+        return {static_cast<int8_t>(9 + 3 * (3 - j - l) + i), static_cast<int8_t>(l == (j + 1) % 3 ? 1 : -1)};
     }
-}
+};
+const ProjectionTable kProjection;
+}  // namespace
 
 void Problem::check_regular(const char *name_a, const char *name_b) const {
     const char *names[2] = {name_a, name_b};
     for (int q = 0; q < 2; ++q) {
-        const Poly &det = det_[q];
+        const Poly &det = proj_[kDet + q];
         const double noise = tol_.rounding * kEps * gmag_[3 * q] * gmag_[3 * q + 1] * gmag_[3 * q + 2];
         const double v0 = det(0.0);
         double s = std::fabs(v0) <= noise ? 0.0 : std::numeric_limits<double>::quiet_NaN();
@@ -202,33 +221,53 @@ void Problem::check_regular(const char *name_a, const char *name_b) const {
     }
 }
 
+// A switch polynomial that stays zero (within rounding) over the whole range
+// is a normal component that does not change the topology: ignore it.
+bool Problem::ignorable_switch(int k) const {
+    const int q = k / 9, i = (k % 9) / 3, l = k % 3;
+    const double noise = tol_.rounding * kEps * gmag_[3 * q + (i + 1) % 3] * gmag_[3 * q + (i + 2) % 3] *
+                         gmag_[3 * (1 - q) + l];
+    const Poly &p = proj_[k];
+    for (int c = 0; c <= p.deg; ++c)
+        if (std::fabs(p.c[c]) > noise) return false;
+    return true;
+}
+
+Problem::Switches Problem::first_switches() const {
+    Switches sw;
+    for (int k = 0; k < 18; ++k) {
+        const double r = ignorable_switch(k) ? kNone : first_sign_change(proj_[k], 0.0, 1.0);
+        sw.next[k] = std::isnan(r) ? kNone : r;
+    }
+    return sw;
+}
+
+double Problem::Switches::boundary() const {
+    double b = 1.0;
+    for (double r : next) b = std::min(b, r);
+    return b;
+}
+
+void Problem::pass(Switches &sw, double boundary) const {
+    // Sign changes within a few doubles of the one just passed are the same switch.
+    const double from = boundary + 4.0 * kRootWidth;
+    for (int k = 0; k < 18; ++k) {
+        if (sw.next[k] > boundary) continue;
+        const double r = from < 1.0 ? first_sign_change(proj_[k], from, 1.0) : kNone;
+        sw.next[k] = std::isnan(r) ? kNone : r;
+    }
+}
+
 std::vector<double> Problem::sections() const {
-    std::vector<double> cuts;
-    auto collect = [&cuts](double s) { cuts.push_back(s); };
-    for (int q = 0; q < 2; ++q) {
-        const int other = 3 * (1 - q);
-        for (int i = 0; i < 3; ++i)
-            for (int l = 0; l < 3; ++l) {
-                const Poly &p = S_[q][i][l];
-                // A normal component that stays zero (within rounding) over the
-                // whole range is not a switch: skip it.
-                const double noise = tol_.rounding * kEps * gmag_[3 * q + (i + 1) % 3] *
-                                     gmag_[3 * q + (i + 2) % 3] * gmag_[other + l];
-                bool zero = true;
-                for (int c = 0; c <= p.deg; ++c) zero = zero && std::fabs(p.c[c]) <= noise;
-                if (!zero) sign_changes(p, 0.0, 1.0, to_bernstein(p, 0.0, 1.0), 0, collect);
-            }
+    build_facet_terms();
+    std::vector<double> cuts{0.0};
+    Switches sw = first_switches();
+    for (double b = sw.boundary(); b < 1.0; b = sw.boundary()) {
+        cuts.push_back(b);
+        pass(sw, b);
     }
-    cuts.push_back(0.0);
     cuts.push_back(1.0);
-    std::sort(cuts.begin(), cuts.end());
-    std::vector<double> out;
-    for (double s : cuts) {
-        if (s < 0.0 || s > 1.0) continue;
-        if (!out.empty() && s <= out.back()) continue;  // duplicates
-        out.push_back(s);
-    }
-    return out;
+    return cuts;
 }
 
 Problem::Section Problem::make_section(double lo, double hi) const {
@@ -236,39 +275,65 @@ Problem::Section Problem::make_section(double lo, double hi) const {
     sec.lo = lo;
     sec.hi = hi;
     const double mid = 0.5 * (lo + hi);
-    double hmag = 0.0;
-    for (int g = 0; g < 6; ++g) hmag += h_[g] * gmag_[g];
+    std::array<double, 3> gm[6];
+    double glen[6];
+    for (int g = 0; g < 6; ++g) {
+        gm[g] = g_[g](mid);
+        glen[g] = norm3(gm[g]);
+    }
+    double pv[20];
+    for (int i = 0; i < 20; ++i) pv[i] = proj_[i](mid);
     for (int ax = 0; ax < 15; ++ax) {
-        Poly H;
         for (int g = 0; g < 6; ++g) {
-            const Poly *p;
-            double sign;
-            projection(ax, g, p, sign);
-            sec.sig[ax][g] = 0;
-            if (!p) continue;
-            const double v = sign * (*p)(mid);
+            const Projection pr = kProjection.p[ax][g];
+            const double v = pr.index >= 0 ? pr.sign * pv[pr.index] : 0.0;
             // The topology sampled at an interior point holds over the section.
-            const int8_t sg = static_cast<int8_t>((v > 0.0) - (v < 0.0));
-            sec.sig[ax][g] = sg;
-            if (sg != 0) axpy(H, sg * sign * h_[g], *p);
+            sec.sig[ax][g] = static_cast<int8_t>((v > 0.0) - (v < 0.0));
         }
         const int g1 = axis_generator(ax, 0), g2 = axis_generator(ax, 1);
-        const double noise = tol_.rounding * kEps * (dmag_ + hmag) * gmag_[g1] * gmag_[g2];
-        const double nn = norm3(n_[ax](mid));
+        const std::array<double, 3> &u = gm[g1], &v = gm[g2];
+        const double nn = norm3({u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]});
         // Parallel edges (or a flat box) give an axis with no direction: it can
         // rank no contact (its facet has zero area).
-        const bool has_direction = nn > 1e-9 * norm3(g_[g1](mid)) * norm3(g_[g2](mid));
-        const double tau = tol_.gap_rel * size_ * nn + noise;
-        for (int sgn = 0; sgn < 2; ++sgn) {
-            const int k = 2 * ax + sgn;
-            Poly P = (sgn == 0 ? 1.0 : -1.0) * nd_[ax] - H;
-            P.c[0] -= tau;  // Q_k = P_k - tau_k: <= 0 means touching within tolerance
-            sec.Q[k] = P;
-            sec.tau[k] = tau;
-            sec.scale[k] = has_direction ? nn : 0.0;
-        }
+        sec.scale[ax] = nn > 1e-9 * glen[g1] * glen[g2] ? nn : 0.0;
+        sec.tau[ax] = tol_.gap_rel * size_ * nn + noise_[ax];
     }
     return sec;
+}
+
+// Q_k = +-n.d - sum_g sig * |n.g| h_g - tau, built on first use.
+const Poly &Problem::facet_poly(const Section &sec, int facet) const {
+    if (!(sec.built & (1u << facet))) {
+        const int ax = facet / 2;
+        Poly H;
+        for (int g = 0; g < 6; ++g) {
+            if (!sec.sig[ax][g]) continue;
+            const Projection pr = kProjection.p[ax][g];
+            axpy(H, sec.sig[ax][g] * pr.sign * h_[g], proj_[pr.index]);
+        }
+        Poly P = (facet % 2 == 0 ? 1.0 : -1.0) * nd_[ax] - H;
+        P.c[0] -= sec.tau[ax];
+        sec.Q[facet] = P;
+        sec.built |= 1u << facet;
+    }
+    return sec.Q[facet];
+}
+
+// All 30 Q_k(s) from the 35 shared polynomials, without building any facet.
+void Problem::facet_values(const Section &sec, double s, double *q) const {
+    double pv[20];
+    for (int i = 0; i < 20; ++i) pv[i] = proj_[i](s);
+    for (int ax = 0; ax < 15; ++ax) {
+        double H = 0.0;
+        for (int g = 0; g < 6; ++g) {
+            if (!sec.sig[ax][g]) continue;
+            const Projection pr = kProjection.p[ax][g];
+            H += sec.sig[ax][g] * pr.sign * h_[g] * pv[pr.index];
+        }
+        const double nd = nd_[ax](s);
+        q[2 * ax] = nd - H - sec.tau[ax];
+        q[2 * ax + 1] = -nd - H - sec.tau[ax];
+    }
 }
 
 // Advancement inside one section: from s, take the facet that separates most,
@@ -279,21 +344,22 @@ Problem::Section Problem::make_section(double lo, double hi) const {
 // that root the facet proves the boxes apart.
 bool Problem::advance(const Section &sec, double &s, int &last) const {
     uint32_t touching = 0;  // facets within rounding of zero at this s
+    double q[30];
     for (int step = 0; step < tol_.max_steps; ++step) {
+        facet_values(sec, s, q);
         int best = -1;
         double best_v = 0.0;
         for (int k = 0; k < 30; ++k) {
-            if (touching & (1u << k)) continue;
-            const double q = sec.Q[k](s);
-            if (q <= 0.0) continue;
-            const double rank = sec.scale[k] > 0.0 ? q / sec.scale[k] : 0.0;  // separation distance
+            if (q[k] <= 0.0 || (touching & (1u << k))) continue;
+            const double sc = sec.scale[k / 2];
+            const double rank = sc > 0.0 ? q[k] / sc : 0.0;  // separation distance
             if (best < 0 || rank > best_v) {
                 best_v = rank;
                 best = k;
             }
         }
         if (best < 0) return true;
-        const double r = first_nonpositive(sec.Q[best], s, sec.hi);
+        const double r = first_nonpositive(facet_poly(sec, best), s, sec.hi);
         if (std::isnan(r)) return false;
         if (r <= s) {  // Horner and Bernstein disagree in the last bits: treat as touching here
             touching |= 1u << best;
@@ -307,36 +373,95 @@ bool Problem::advance(const Section &sec, double &s, int &last) const {
 }
 
 int Problem::best_facet(const Section &sec, double s) const {
+    double q[30];
+    facet_values(sec, s, q);
     int best = 0;
     double best_v = -std::numeric_limits<double>::infinity();
     for (int k = 0; k < 30; ++k) {
-        if (sec.scale[k] == 0.0) continue;
-        const double v = (sec.Q[k](s) + sec.tau[k]) / sec.scale[k];
+        const double sc = sec.scale[k / 2];
+        if (sc == 0.0) continue;
+        const double v = (q[k] + sec.tau[k / 2]) / sc;
         if (v > best_v) { best_v = v; best = k; }
     }
     return best;
 }
 
+// Culling before the route division: if one fixed unit direction u separates
+// the boxes over the whole range, they never touch. For fixed u every term is
+// a quadratic in s, bounded by its three Bernstein control points:
+//   gap_u(s) = |u.d| - sum_g h_g |u.g| >= min |ctrl(u.d)| - sum_g h_g max |ctrl(u.g)|
+// when the control points of u.d share a sign. Candidates: the most separating
+// of the 15 axes at s = 0 and at s = 1. The bound only ever proves pairs apart
+// that are apart by more than the touching tolerance, so it changes speed,
+// never answers.
+bool Problem::apart_on_fixed_axis() const {
+    const double margin = tol_.gap_rel * size_ + tol_.rounding * kEps * (dmag_ + hmag_);
+    auto ctrl = [](const Poly &p, double u) {  // control points of u * p (degree <= 2)
+        return std::array<double, 3>{u * p.c[0], u * (p.c[0] + 0.5 * p.c[1]), u * (p.c[0] + p.c[1] + p.c[2])};
+    };
+    for (double s : {0.0, 1.0}) {
+        std::array<double, 3> gs[6];
+        for (int g = 0; g < 6; ++g) gs[g] = g_[g](s);
+        const std::array<double, 3> ds = d_(s);
+        double best_gap = 0.0;
+        std::array<double, 3> best_u{};
+        for (int ax = 0; ax < 15; ++ax) {
+            const std::array<double, 3> &a = gs[axis_generator(ax, 0)], &b = gs[axis_generator(ax, 1)];
+            std::array<double, 3> n = {a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]};
+            const double nn = norm3(n);
+            if (!(nn > 1e-9 * norm3(a) * norm3(b))) continue;
+            for (double &x : n) x /= nn;
+            double gap = std::fabs(n[0] * ds[0] + n[1] * ds[1] + n[2] * ds[2]);
+            for (int g = 0; g < 6; ++g) gap -= h_[g] * std::fabs(n[0] * gs[g][0] + n[1] * gs[g][1] + n[2] * gs[g][2]);
+            if (gap > best_gap) { best_gap = gap; best_u = n; }
+        }
+        if (best_gap <= margin) continue;
+        std::array<double, 3> bd{};
+        for (int r = 0; r < 3; ++r) {
+            const auto c = ctrl(d_.x[r], best_u[r]);
+            for (int k = 0; k < 3; ++k) bd[k] += c[k];
+        }
+        double lower = std::min({std::fabs(bd[0]), std::fabs(bd[1]), std::fabs(bd[2])});
+        if (!((bd[0] > 0 && bd[1] > 0 && bd[2] > 0) || (bd[0] < 0 && bd[1] < 0 && bd[2] < 0))) continue;
+        for (int g = 0; g < 6; ++g) {
+            std::array<double, 3> bg{};
+            for (int r = 0; r < 3; ++r) {
+                const auto c = ctrl(g_[g].x[r], best_u[r]);
+                for (int k = 0; k < 3; ++k) bg[k] += c[k];
+            }
+            lower -= h_[g] * std::max({std::fabs(bg[0]), std::fabs(bg[1]), std::fabs(bg[2])});
+        }
+        if (lower > margin) return true;
+    }
+    return false;
+}
+
 Hit Problem::solve(bool want_geometry) const {
     Hit hit;
-    const std::vector<double> cuts = sections();
+    if (apart_on_fixed_axis()) return hit;
+    build_facet_terms();
+    Switches sw = first_switches();
     int last = -1;
-    for (size_t i = 0; i + 1 < cuts.size(); ++i) {
-        const Section sec = make_section(cuts[i], cuts[i + 1]);
-        double s = sec.lo;
-        if (!advance(sec, s, last)) continue;
-        hit.hit = true;
-        hit.s = s;
-        hit.t = s >= 1.0 ? t1 : t0 + s * (t1 - t0);
-        hit.initial = (s == 0.0);
-        // The facet the origin just crossed; when no facet was crossed (contact
-        // at the start or exactly at a section boundary) the facet of least
-        // penetration.
-        hit.facet = (last >= 0 && !hit.initial) ? last : best_facet(sec, s);
-        if (want_geometry) contact_geometry(sec, hit);
-        return hit;
+    for (double lo = 0.0;;) {
+        const double hi = sw.boundary();
+        const Section sec = make_section(lo, hi);
+        double s = lo;
+        if (advance(sec, s, last)) {
+            hit.hit = true;
+            hit.s = s;
+            hit.t = s >= 1.0 ? t1 : t0 + s * (t1 - t0);
+            hit.initial = (s == 0.0);
+            // The facet the origin just crossed; when no facet was crossed
+            // (contact at the start or exactly at a section boundary) the facet
+            // of least penetration.
+            hit.facet = (last >= 0 && !hit.initial) ? last : best_facet(sec, s);
+            if (want_geometry) contact_geometry(sec, hit);
+            return hit;
+        }
+        if (hi >= 1.0) return hit;
+        pass(sw, hi);
+        lo = hi;
     }
-    return hit;
 }
 
 // Outward normal sign of facet k on generator g (+1 / -1, 0 for structural).
@@ -385,17 +510,23 @@ void Problem::contact_geometry(const Section &sec, Hit &hit) const {
 }
 
 void Problem::planes(double s, double *normals, double *offsets, int8_t *feat_a, int8_t *feat_b) const {
-    const std::vector<double> cuts = sections();
-    size_t i = 0;
-    while (i + 2 < cuts.size() && s >= cuts[i + 1]) ++i;
-    const Section sec = make_section(cuts[i], cuts[i + 1]);
+    build_facet_terms();
+    Switches sw = first_switches();
+    double lo = 0.0;
+    while (sw.boundary() <= s && sw.boundary() < 1.0) {
+        lo = sw.boundary();
+        pass(sw, lo);
+    }
+    const Section sec = make_section(lo, sw.boundary());
+    double q[30];
+    facet_values(sec, s, q);
     for (int k = 0; k < 30; ++k) {
         const int ax = k / 2;
         const double sgn = k % 2 == 0 ? 1.0 : -1.0;
         const std::array<double, 3> n = n_[ax](s);
         const double nn = norm3(n);
         for (int r = 0; r < 3; ++r) normals[3 * k + r] = sgn * n[r] / nn;
-        offsets[k] = -(sec.Q[k](s) + sec.tau[k]) / nn;
+        offsets[k] = -(q[k] + sec.tau[ax]) / nn;
         for (int g = 0; g < 3; ++g) {
             feat_a[3 * k + g] = static_cast<int8_t>(facet_sign(sec.sig[ax], k, g));
             feat_b[3 * k + g] = static_cast<int8_t>(-facet_sign(sec.sig[ax], k, 3 + g));

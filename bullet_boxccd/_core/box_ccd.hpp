@@ -114,30 +114,51 @@ public:
     double t0, t1;
 
 private:
+    // One section: the topology sampled at its midpoint, and the facet
+    // polynomials, built only for the facets the advancement asks about.
     struct Section {
         double lo, hi;
-        std::array<Poly, 30> Q;         // facet polynomial minus tau: <= 0 is touching
-        std::array<double, 30> tau;     // touching tolerance + rounding allowance
-        std::array<double, 30> scale;   // |n| at mid-section to rank facets; 0 if n has no direction
-        int8_t sig[15][6];              // topology: sign of n_axis . g at mid-section
+        int8_t sig[15][6];             // sign of n_axis . g at mid-section (0: structural)
+        std::array<double, 15> tau;    // touching tolerance + rounding allowance per axis
+        std::array<double, 15> scale;  // |n| at mid-section to rank axes; 0 if n has no direction
+        mutable std::array<Poly, 30> Q;  // facet polynomial minus tau: <= 0 is touching
+        mutable uint32_t built = 0;      // which Q are built
     };
+    // The route division, found lazily: for each of the 18 switch polynomials,
+    // its next sign change after the last boundary passed (+inf: none).
+    struct Switches {
+        std::array<double, 18> next;
+        double boundary() const;         // the next section end (1 at the latest)
+    };
+    bool ignorable_switch(int k) const;
+    Switches first_switches() const;
+    void pass(Switches &sw, double boundary) const;
     Section make_section(double lo, double hi) const;
-    void projection(int axis, int g, const Poly *&p, double &sign) const;
+    const Poly &facet_poly(const Section &sec, int facet) const;
+    void facet_values(const Section &sec, double s, double *q) const;  // Q_k(s), k < 30
+    bool apart_on_fixed_axis() const;
     bool advance(const Section &sec, double &s, int &last) const;
     int best_facet(const Section &sec, double s) const;
     void contact_geometry(const Section &sec, Hit &hit) const;
+    void build_facet_terms() const;
 
     Tolerances tol_;
     PVec g_[6];
     double h_[6];
     PVec cA_, cB_, d_;
-    PVec n_[15];
-    Poly det_[2];
-    Poly S_[2][3][3];
-    Poly nd_[15];
     double gmag_[6];
-    double dmag_;
+    double dmag_, hmag_;
     double size_;  // world size used by gap_rel
+    // Cofactor terms; n_[0], n_[3] and det_ are built with the problem (the
+    // regularity check needs them), the rest on first use (a pair that a
+    // fixed axis keeps apart never needs them).
+    // proj_[9q + 3i + l] = S[q][i][l] (see the file comment), proj_[18 + q] = det.
+    static constexpr int kDet = 18;
+    mutable PVec n_[15];
+    mutable Poly proj_[20];
+    mutable Poly nd_[15];
+    mutable double noise_[15];  // rounding allowance of each axis' facets
+    mutable bool terms_built_ = false;
 };
 
 int axis_generator(int axis, int which);  // the two generators spanning an axis

@@ -11,8 +11,8 @@
 // Root isolation uses the Bernstein form on the query interval: the curve lies
 // in the convex hull of its control points, so "all control points > 0" proves
 // "no root", and Descartes' rule of signs on the control points (one sign
-// variation => exactly one root) proves a single crossing that bisection then
-// pins down to the last representable double. Intervals with more variations
+// variation => exactly one root) proves a single crossing that a bracketed
+// secant method (Illinois) then pins down to ~1e-15. Intervals with more variations
 // are halved (de Casteljau), left half first, so the first root is found first.
 #pragma once
 
@@ -74,22 +74,44 @@ inline void axpy(Poly &r, double k, const Poly &a) {
     for (int i = 0; i <= a.deg; ++i) r.c[i] += k * a.c[i];
 }
 
+// r += k * a * b with degrees known at compile time (the loops unroll): the
+// hot part of building a problem. a.deg <= DA and b.deg <= DB are the caller's promise.
+template <int DA, int DB>
+inline void mul_acc_fixed(Poly &r, double k, const Poly &a, const Poly &b) {
+    static_assert(DA + DB <= kMaxDeg, "degree overflow");
+    double acc[DA + DB + 1];  // a local accumulator: r may alias a or b
+    for (int i = 0; i <= DA + DB; ++i) acc[i] = r.c[i];
+    for (int i = 0; i <= DA; ++i) {
+        const double ka = k * a.c[i];
+        for (int j = 0; j <= DB; ++j) acc[i + j] += ka * b.c[j];
+    }
+    for (int i = 0; i <= DA + DB; ++i) r.c[i] = acc[i];
+    if (DA + DB > r.deg) r.deg = DA + DB;
+}
+
 // A polynomial vector (a box edge direction, a centre, a normal).
 struct PVec {
     Poly x[3];
     std::array<double, 3> operator()(double s) const { return {x[0](s), x[1](s), x[2](s)}; }
     double magnitude() const { return x[0].magnitude() + x[1].magnitude() + x[2].magnitude(); }
 };
+// Cross and dot products of vectors whose entries have degree <= DA, DB
+// (edge directions and centres are quadratic, normals quartic).
+template <int DA = 2, int DB = 2>
 inline PVec cross(const PVec &a, const PVec &b) {
     PVec r;
     for (int i = 0; i < 3; ++i) {
         const int j = (i + 1) % 3, k = (i + 2) % 3;
-        r.x[i] = a.x[j] * b.x[k] - a.x[k] * b.x[j];
+        mul_acc_fixed<DA, DB>(r.x[i], 1.0, a.x[j], b.x[k]);
+        mul_acc_fixed<DA, DB>(r.x[i], -1.0, a.x[k], b.x[j]);
     }
     return r;
 }
+template <int DA, int DB>
 inline Poly dot(const PVec &a, const PVec &b) {
-    return a.x[0] * b.x[0] + a.x[1] * b.x[1] + a.x[2] * b.x[2];
+    Poly r;
+    for (int i = 0; i < 3; ++i) mul_acc_fixed<DA, DB>(r, 1.0, a.x[i], b.x[i]);
+    return r;
 }
 
 // Bernstein control points of p restricted to [lo, hi] (mapped onto u in [0, 1]).
@@ -98,24 +120,40 @@ struct Bernstein {
     int deg = 0;
 };
 
+// kPowerToBernstein[n][k][i] = C(k, i) / C(n, i): b_k = sum_{i<=k} ratio * q_i.
+struct PowerToBernstein {
+    double r[kMaxDeg + 1][kMaxDeg + 1][kMaxDeg + 1] = {};
+    PowerToBernstein() {
+        double C[kMaxDeg + 1][kMaxDeg + 1] = {};
+        for (int n = 0; n <= kMaxDeg; ++n) {
+            C[n][0] = 1.0;
+            for (int k = 1; k <= n; ++k) C[n][k] = C[n - 1][k - 1] + (k < n ? C[n - 1][k] : 0.0);
+        }
+        for (int n = 0; n <= kMaxDeg; ++n)
+            for (int k = 0; k <= n; ++k)
+                for (int i = 0; i <= k; ++i) r[n][k][i] = C[k][i] / C[n][i];
+    }
+};
+inline const PowerToBernstein kPowerToBernstein;
+
 inline Bernstein to_bernstein(const Poly &p, double lo, double hi) {
     // Taylor shift to lo, then scale by w = hi - lo: q(u) = p(lo + w u).
     std::array<double, kMaxDeg + 1> q = p.c;
     const int n = p.deg;
-    for (int i = 0; i < n; ++i)
-        for (int j = n - 1; j >= i; --j) q[j] += lo * q[j + 1];
+    if (lo != 0.0)
+        for (int i = 0; i < n; ++i)
+            for (int j = n - 1; j >= i; --j) q[j] += lo * q[j + 1];
     const double w = hi - lo;
-    double wk = 1.0;
-    for (int i = 0; i <= n; ++i) { q[i] *= wk; wk *= w; }
-    // Power -> Bernstein: b_k = sum_{i<=k} C(k,i)/C(n,i) q_i.
-    static const double binom[kMaxDeg + 1][kMaxDeg + 1] = {
-        {1}, {1, 1}, {1, 2, 1}, {1, 3, 3, 1}, {1, 4, 6, 4, 1},
-        {1, 5, 10, 10, 5, 1}, {1, 6, 15, 20, 15, 6, 1}};
+    if (w != 1.0) {
+        double wk = w;
+        for (int i = 1; i <= n; ++i) { q[i] *= wk; wk *= w; }
+    }
     Bernstein r;
     r.deg = n;
+    const auto &ratio = kPowerToBernstein.r[n];
     for (int k = 0; k <= n; ++k) {
         double v = 0.0;
-        for (int i = 0; i <= k; ++i) v += binom[k][i] / binom[n][i] * q[i];
+        for (int i = 0; i <= k; ++i) v += ratio[k][i] * q[i];
         r.b[k] = v;
     }
     return r;
@@ -147,38 +185,66 @@ inline int sign_variations(const Bernstein &bz) {
     return v;
 }
 
-// Given p(lo) > 0 >= p(hi) and a single crossing in between, the smallest
-// double x in (lo, hi] with p(x) <= 0 as evaluated (bisection to adjacent doubles;
-// bisection rather than Newton because it cannot leave the bracket or stall at
-// the double roots that grazing contacts produce).
-inline double bisect_crossing(const Poly &p, double lo, double hi) {
-    for (int it = 0; it < 80; ++it) {
-        const double mid = 0.5 * (lo + hi);
-        if (mid <= lo || mid >= hi) break;
-        if (p(mid) > 0.0) lo = mid; else hi = mid;
+// Width below which a root bracket in s counts as converged: 2^-50, a few
+// doubles near s = 1, so contact times are resolved to ~1e-15 of the range.
+constexpr double kRootWidth = 8.8817841970012523e-16;
+
+// Given p(lo) > 0 >= p(hi) and a single crossing in between: a point x with
+// p(x) <= 0 as evaluated, at most kRootWidth after the last point found with
+// p > 0. Illinois (regula falsi that halves the value kept at a stale end)
+// converges superlinearly and cannot leave the bracket; a bisection step
+// replaces any secant step that would.
+inline double refine_crossing(const Poly &p, double lo, double hi) {
+    double flo = p(lo), fhi = p(hi);
+    if (!(flo > 0.0)) return lo;
+    int side = 0;
+    for (int it = 0; it < 100 && hi - lo > kRootWidth; ++it) {
+        double x = (lo * fhi - hi * flo) / (fhi - flo);
+        if (!(x > lo && x < hi)) x = 0.5 * (lo + hi);
+        if (x <= lo || x >= hi) break;  // adjacent doubles
+        const double fx = p(x);
+        if (fx > 0.0) {
+            lo = x;
+            flo = fx;
+            if (side == 1) fhi *= 0.5;
+            side = 1;
+        } else {
+            hi = x;
+            fhi = fx;
+            if (side == -1) flo *= 0.5;
+            side = -1;
+        }
     }
     return hi;
 }
 
-// Every s in (lo, hi) at which p changes sign (the octant switches). Roots that
-// only touch zero do not change the topology and are not reported.
-template <class Out>
-void sign_changes(const Poly &p, double lo, double hi, const Bernstein &bz, int depth, Out &out) {
+// True if |p| > 0 on all of [0, 1] by the cheapest bound: |c0| > sum |c_i|, i >= 1.
+inline bool clearly_nonzero(const Poly &p) {
+    double rest = 0.0;
+    for (int i = 1; i <= p.deg; ++i) rest += std::fabs(p.c[i]);
+    return std::fabs(p.c[0]) > rest;
+}
+
+// The first s in (lo, hi] at which p changes sign (an octant switch); NaN if
+// none. Roots that only touch zero do not change the topology and are skipped.
+inline double first_sign_change(const Poly &p, double lo, double hi, const Bernstein &bz, int depth) {
     const int v = sign_variations(bz);
-    if (v == 0) return;
+    if (v == 0) return std::numeric_limits<double>::quiet_NaN();
     const double b0 = bz.b[0], bn = bz.b[bz.deg];
-    if (v == 1 || depth >= 60 || hi - lo <= 4.0 * kEps * (1.0 + std::fabs(hi))) {
-        if ((b0 > 0.0 && bn < 0.0) || (b0 < 0.0 && bn > 0.0)) {
-            const Poly q = b0 > 0.0 ? p : -1.0 * p;
-            out(bisect_crossing(q, lo, hi));
-        }
-        return;
-    }
+    // One variation between nonzero ends: exactly one crossing, ends of opposite sign.
+    if (v == 1 && b0 != 0.0 && bn != 0.0) return refine_crossing(b0 > 0.0 ? p : -1.0 * p, lo, hi);
+    const double mid = 0.5 * (lo + hi);
+    if (depth >= 60 || mid <= lo || mid >= hi)  // clustered roots in a few doubles
+        return v % 2 ? mid : std::numeric_limits<double>::quiet_NaN();
     Bernstein l, r;
     split_half(bz, l, r);
-    const double mid = 0.5 * (lo + hi);
-    sign_changes(p, lo, mid, l, depth + 1, out);
-    sign_changes(p, mid, hi, r, depth + 1, out);
+    const double x = first_sign_change(p, lo, mid, l, depth + 1);
+    return std::isnan(x) ? first_sign_change(p, mid, hi, r, depth + 1) : x;
+}
+
+inline double first_sign_change(const Poly &p, double lo, double hi) {
+    if (clearly_nonzero(p)) return std::numeric_limits<double>::quiet_NaN();
+    return first_sign_change(p, lo, hi, to_bernstein(p, lo, hi), 0);
 }
 
 // The first s in (lo, hi] with p(s) <= 0, given p(lo) > 0; NaN if p > 0 on all
@@ -190,7 +256,7 @@ inline double first_nonpositive(const Poly &p, double lo, double hi, const Berns
     if (all_positive) return std::numeric_limits<double>::quiet_NaN();
     if (bz.b[0] <= 0.0) return lo;
     const int v = sign_variations(bz);
-    if (v == 1 && bz.b[bz.deg] <= 0.0) return bisect_crossing(p, lo, hi);
+    if (v == 1 && bz.b[bz.deg] <= 0.0) return refine_crossing(p, lo, hi);
     const double mid = 0.5 * (lo + hi);
     if (depth >= 60 || mid <= lo || mid >= hi) return lo;  // clustered roots: stay early
     Bernstein l, r;
@@ -201,6 +267,7 @@ inline double first_nonpositive(const Poly &p, double lo, double hi, const Berns
 }
 
 inline double first_nonpositive(const Poly &p, double lo, double hi) {
+    if (p.c[0] > 0.0 && clearly_nonzero(p)) return std::numeric_limits<double>::quiet_NaN();
     return first_nonpositive(p, lo, hi, to_bernstein(p, lo, hi), 0);
 }
 
