@@ -20,12 +20,9 @@ from ._arrays import as_float_array
 
 __all__ = ["Box", "feature_name"]
 
-_AXES = "XYZ"
-
-
 def feature_name(signs) -> str:
     """Seed name of the feature with this sign triple: (1, 0, -1) -> "X'Z"."""
-    return "".join(_AXES[i] + ("'" if s > 0 else "") for i, s in enumerate(signs) if s != 0)
+    return _core.feature_name([int(np.sign(s)) for s in signs])
 
 
 def _readonly(a: np.ndarray) -> np.ndarray:
@@ -49,7 +46,7 @@ class Box:
     def __post_init__(self):
         lo = np.array(as_float_array("lo", self.lo, (3,)))
         hi = np.array(as_float_array("hi", self.hi, (3,)))
-        _core.check_box(lo, hi, "Box")
+        object.__setattr__(self, "_data", _core.make_box(lo, hi, "Box"))  # validated copy for the core
         object.__setattr__(self, "lo", _readonly(lo))
         object.__setattr__(self, "hi", _readonly(hi))
 

@@ -53,7 +53,7 @@ class QuadraticMotion:
 
     def __post_init__(self):
         c = np.array(as_float_array("coeffs", self.coeffs, (3, 4, 4)))
-        _core.check_motion(c, "QuadraticMotion")
+        object.__setattr__(self, "_data", _core.make_motion(c, "QuadraticMotion"))  # validated copy for the core
         c.setflags(write=False)
         object.__setattr__(self, "coeffs", c)
 

@@ -30,7 +30,7 @@ from ._core import (
     NonFiniteInputError,
     SingularMotionError,
 )
-from .geometry import Box, feature_name
+from .geometry import Box
 from .motion import QuadraticMotion
 
 __all__ = [
@@ -50,9 +50,6 @@ __all__ = [
     "SingularMotionError",
     "InvalidTimeRangeError",
 ]
-
-_KINDS = ("OV", "OV", "OV", "VO", "VO", "VO") + ("EE",) * 9
-
 
 @dataclass(frozen=True)
 class Tolerances:
@@ -92,9 +89,9 @@ class Tolerances:
                 raise InvalidInputError(f"Tolerances.{name} is {v!r}; expected a finite number >= 0")
         if int(self.max_steps) < 1:
             raise InvalidInputError(f"Tolerances.max_steps is {self.max_steps!r}; expected an integer >= 1")
-
-    def _args(self):
-        return (float(self.gap_rel), float(self.rounding), int(self.max_steps))
+        core = _core.Tolerances()
+        core.gap_rel, core.rounding, core.max_steps = float(self.gap_rel), float(self.rounding), int(self.max_steps)
+        object.__setattr__(self, "_core", core)
 
 
 DEFAULT_TOLERANCES = Tolerances()
@@ -110,12 +107,7 @@ class Feature(NamedTuple):
     b: str
 
 
-def _feature(facet: int, signs_a, signs_b) -> Feature:
-    return Feature(_KINDS[facet // 2], feature_name(signs_a), feature_name(signs_b))
-
-
-@dataclass(frozen=True)
-class Contact:
+class Contact(NamedTuple):
     """First contact of two boxes.
 
     Attributes
@@ -150,6 +142,8 @@ class Plane(NamedTuple):
 
 
 def _t_range(t_range) -> tuple[float, float]:
+    if type(t_range) is tuple and len(t_range) == 2 and type(t_range[0]) is float and type(t_range[1]) is float:
+        return t_range  # the common case, without an array round trip (values are checked by the core)
     r = as_float_array("t_range", t_range, (2,))
     return float(r[0]), float(r[1])
 
@@ -158,7 +152,7 @@ def _pair_args(a, m_a, b, m_b):
     for name, v, cls in (("a", a, Box), ("m_a", m_a, QuadraticMotion), ("b", b, Box), ("m_b", m_b, QuadraticMotion)):
         if not isinstance(v, cls):
             raise InvalidInputError(f"{name}: expected a {cls.__name__}, got {type(v).__name__}")
-    return a.lo, a.hi, m_a.coeffs, b.lo, b.hi, m_b.coeffs
+    return a._data, m_a._data, b._data, m_b._data
 
 
 def time_of_impact(
@@ -176,11 +170,11 @@ def time_of_impact(
     ``SingularMotionError`` when a 3x3 part collapses inside ``t_range``).
     """
     t0, t1 = _t_range(t_range)
-    r = _core.solve(*_pair_args(a, m_a, b, m_b), t0, t1, *tolerances._args())
+    r = _core.solve(*_pair_args(a, m_a, b, m_b), t0, t1, tolerances._core)
     if r is None:
         return None
-    t, initial, facet, point, normal, fa, fb = r
-    return Contact(t, np.array(point), np.array(normal), _feature(facet, fa, fb), initial)
+    t, initial, kind, feature_a, feature_b, point, normal = r
+    return Contact(t, point, normal, Feature(kind, feature_a, feature_b), initial)
 
 
 def time_of_impact_batch(
@@ -216,7 +210,7 @@ def time_of_impact_batch(
     n = {len(x) for x in arrays}
     if len(n) != 1:
         raise InvalidShapeError(f"batch arrays disagree on N: got lengths {[len(x) for x in arrays]}")
-    return _core.solve_batch(*arrays, t0, t1, *tolerances._args())
+    return _core.solve_batch(*arrays, t0, t1, tolerances._core)
 
 
 def sections(a, m_a, b, m_b, t_range=(0.0, 1.0), tolerances: Tolerances = DEFAULT_TOLERANCES) -> np.ndarray:
@@ -225,7 +219,7 @@ def sections(a, m_a, b, m_b, t_range=(0.0, 1.0), tolerances: Tolerances = DEFAUL
     Between consecutive entries (a section) the BMS topology is constant.
     """
     t0, t1 = _t_range(t_range)
-    return _core.sections(*_pair_args(a, m_a, b, m_b), t0, t1, *tolerances._args())
+    return _core.sections(*_pair_args(a, m_a, b, m_b), t0, t1, tolerances._core)
 
 
 def bms_planes(a, m_a, b, m_b, t: float, t_range=(0.0, 1.0), tolerances: Tolerances = DEFAULT_TOLERANCES):
@@ -236,5 +230,5 @@ def bms_planes(a, m_a, b, m_b, t: float, t_range=(0.0, 1.0), tolerances: Toleran
     normals.
     """
     t0, t1 = _t_range(t_range)
-    normals, offsets, fa, fb = _core.planes(*_pair_args(a, m_a, b, m_b), t0, t1, float(t), *tolerances._args())
-    return [Plane(normals[k], float(offsets[k]), _feature(k, fa[k], fb[k])) for k in range(30)]
+    normals, offsets, features = _core.planes(*_pair_args(a, m_a, b, m_b), t0, t1, float(t), tolerances._core)
+    return [Plane(normals[k], float(offsets[k]), Feature(*features[k])) for k in range(30)]

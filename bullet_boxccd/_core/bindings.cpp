@@ -4,6 +4,7 @@
 #include <nanobind/nanobind.h>
 #include <nanobind/ndarray.h>
 #include <nanobind/stl/string.h>
+#include <nanobind/stl/array.h>
 #include <nanobind/stl/tuple.h>
 
 #include <string>
@@ -27,42 +28,76 @@ struct InputErrorTag : std::runtime_error {  // the base class only; never throw
     using std::runtime_error::runtime_error;
 };
 
-Tolerances make_tol(double gap_rel, double rounding, int max_steps) {
-    Tolerances t;
-    t.gap_rel = gap_rel;
-    t.rounding = rounding;
-    t.max_steps = max_steps;
-    return t;
+// A validated box and motion, held by the Python Box and QuadraticMotion so
+// that a single query crosses the language boundary without array conversion.
+struct BoxData {
+    double lo[3], hi[3];
+};
+struct MotionData {
+    double c[48];
+};
+
+BoxData make_box(const Vec3 &lo, const Vec3 &hi, const std::string &name) {
+    check_box(lo.data(), hi.data(), name, "");
+    BoxData b;
+    std::copy(lo.data(), lo.data() + 3, b.lo);
+    std::copy(hi.data(), hi.data() + 3, b.hi);
+    return b;
 }
 
-Problem make_problem(const Vec3 &lo_a, const Vec3 &hi_a, const Coeffs &c_a, const Vec3 &lo_b, const Vec3 &hi_b,
-                     const Coeffs &c_b, double t0, double t1, const Tolerances &tol) {
+MotionData make_motion(const Coeffs &c, const std::string &name) {
+    check_motion(c.data(), name, "");
+    MotionData m;
+    std::copy(c.data(), c.data() + 48, m.c);
+    return m;
+}
+
+Problem make_problem(const BoxData &a, const MotionData &m_a, const BoxData &b, const MotionData &m_b, double t0,
+                     double t1, const Tolerances &tol) {
     check_time_range(t0, t1);
-    Problem p({lo_a.data(), hi_a.data(), c_a.data()}, {lo_b.data(), hi_b.data(), c_b.data()}, t0, t1, tol);
+    Problem p({a.lo, a.hi, m_a.c}, {b.lo, b.hi, m_b.c}, t0, t1, tol);
     p.check_regular("m_a", "m_b");
     return p;
 }
 
-nb::tuple triple(const std::array<int8_t, 3> &v) { return nb::make_tuple(v[0], v[1], v[2]); }
-nb::tuple vec(const std::array<double, 3> &v) { return nb::make_tuple(v[0], v[1], v[2]); }
+// Seed name of a feature from its sign triple: (1, 0, -1) -> "X'Z".
+std::string feature_name(const std::array<int8_t, 3> &signs) {
+    std::string s;
+    for (int i = 0; i < 3; ++i) {
+        if (signs[i] == 0) continue;
+        s += "XYZ"[i];
+        if (signs[i] > 0) s += '\'';
+    }
+    return s;
+}
 
-nb::object solve(const Vec3 &lo_a, const Vec3 &hi_a, const Coeffs &c_a, const Vec3 &lo_b, const Vec3 &hi_b,
-                 const Coeffs &c_b, double t0, double t1, double gap_rel, double rounding, int max_steps) {
-    const Problem p = make_problem(lo_a, hi_a, c_a, lo_b, hi_b, c_b, t0, t1, make_tol(gap_rel, rounding, max_steps));
+const char *kKind[3] = {"OV", "VO", "EE"};
+const char *facet_kind(int facet) { return kKind[facet < 6 ? 0 : facet < 12 ? 1 : 2]; }
+
+using Out3 = nb::ndarray<nb::numpy, double, nb::shape<3>>;
+Out3 vec3(const std::array<double, 3> &v) {
+    double *d = new double[3]{v[0], v[1], v[2]};
+    nb::capsule owner(d, [](void *p) noexcept { delete[] static_cast<double *>(p); });
+    return Out3(d, {3}, owner);
+}
+
+// (t, initial, kind, feature of A, feature of B, point, normal) or None.
+nb::object solve(const BoxData &a, const MotionData &m_a, const BoxData &b, const MotionData &m_b, double t0,
+                 double t1, const Tolerances &tol) {
+    const Problem p = make_problem(a, m_a, b, m_b, t0, t1, tol);
     const Hit h = p.solve(true);
     if (!h.hit) return nb::none();
-    return nb::make_tuple(h.t, h.initial, h.facet, vec(h.point), vec(h.normal), triple(h.feat_a), triple(h.feat_b));
+    return nb::make_tuple(h.t, h.initial, facet_kind(h.facet), feature_name(h.feat_a), feature_name(h.feat_b),
+                          vec3(h.point), vec3(h.normal));
 }
 
 // Validates every row (raising for the first bad one, naming all bad rows),
 // then solves with the GIL released. Output: contact t, NaN where none.
 nb::ndarray<nb::numpy, double, nb::shape<-1>> solve_batch(const Vec3N &lo_a, const Vec3N &hi_a, const CoeffsN &c_a,
                                                          const Vec3N &lo_b, const Vec3N &hi_b, const CoeffsN &c_b,
-                                                         double t0, double t1, double gap_rel, double rounding,
-                                                         int max_steps) {
+                                                         double t0, double t1, const Tolerances &tol) {
     check_time_range(t0, t1);
     const size_t n = lo_a.shape(0);
-    const Tolerances tol = make_tol(gap_rel, rounding, max_steps);
     std::vector<size_t> bad;
     std::string first_msg;
     int first_kind = -1;
@@ -111,11 +146,10 @@ nb::ndarray<nb::numpy, double, nb::shape<-1>> solve_batch(const Vec3N &lo_a, con
     return nb::ndarray<nb::numpy, double, nb::shape<-1>>(out, {n}, owner);
 }
 
-nb::ndarray<nb::numpy, double, nb::shape<-1>> sections(const Vec3 &lo_a, const Vec3 &hi_a, const Coeffs &c_a,
-                                                       const Vec3 &lo_b, const Vec3 &hi_b, const Coeffs &c_b,
-                                                       double t0, double t1, double gap_rel, double rounding,
-                                                       int max_steps) {
-    const Problem p = make_problem(lo_a, hi_a, c_a, lo_b, hi_b, c_b, t0, t1, make_tol(gap_rel, rounding, max_steps));
+nb::ndarray<nb::numpy, double, nb::shape<-1>> sections(const BoxData &a, const MotionData &m_a, const BoxData &b,
+                                                       const MotionData &m_b, double t0, double t1,
+                                                       const Tolerances &tol) {
+    const Problem p = make_problem(a, m_a, b, m_b, t0, t1, tol);
     const std::vector<double> s = p.sections();
     double *out = new double[s.size()];
     nb::capsule owner(out, [](void *q) noexcept { delete[] static_cast<double *>(q); });
@@ -123,31 +157,25 @@ nb::ndarray<nb::numpy, double, nb::shape<-1>> sections(const Vec3 &lo_a, const V
     return nb::ndarray<nb::numpy, double, nb::shape<-1>>(out, {s.size()}, owner);
 }
 
-template <class T>
-nb::ndarray<nb::numpy, T> owned(std::vector<size_t> shape, size_t count, T *&data) {
-    data = new T[count];
-    nb::capsule owner(data, [](void *q) noexcept { delete[] static_cast<T *>(q); });
-    return nb::ndarray<nb::numpy, T>(data, shape.size(), shape.data(), owner);
-}
-
-nb::tuple planes(const Vec3 &lo_a, const Vec3 &hi_a, const Coeffs &c_a, const Vec3 &lo_b, const Vec3 &hi_b,
-                 const Coeffs &c_b, double t0, double t1, double t, double gap_rel, double rounding, int max_steps) {
-    const Problem p = make_problem(lo_a, hi_a, c_a, lo_b, hi_b, c_b, t0, t1, make_tol(gap_rel, rounding, max_steps));
+// (normals (30, 3), offsets (30,), [(kind, feature of A, feature of B)] * 30).
+nb::tuple planes(const BoxData &a, const MotionData &m_a, const BoxData &b, const MotionData &m_b, double t0,
+                 double t1, double t, const Tolerances &tol) {
+    const Problem p = make_problem(a, m_a, b, m_b, t0, t1, tol);
     if (!(t >= t0 && t <= t1))
         throw TimeRangeError("t = " + std::to_string(t) + " lies outside t_range = (" + std::to_string(t0) + ", " +
                              std::to_string(t1) + ")");
-    double *nrm, *off;
-    int8_t *fa, *fb;
-    auto normals = owned<double>({30, 3}, 90, nrm);
-    auto offsets = owned<double>({30}, 30, off);
-    auto feat_a = owned<int8_t>({30, 3}, 90, fa);
-    auto feat_b = owned<int8_t>({30, 3}, 90, fb);
+    double *nrm = new double[90], *off = new double[30];
+    nb::capsule own_n(nrm, [](void *q) noexcept { delete[] static_cast<double *>(q); });
+    nb::capsule own_o(off, [](void *q) noexcept { delete[] static_cast<double *>(q); });
+    int8_t fa[90], fb[90];
     p.planes((t - t0) / (t1 - t0), nrm, off, fa, fb);
-    return nb::make_tuple(normals, offsets, feat_a, feat_b);
+    nb::list features;
+    for (int k = 0; k < 30; ++k)
+        features.append(nb::make_tuple(facet_kind(k), feature_name({fa[3 * k], fa[3 * k + 1], fa[3 * k + 2]}),
+                                       feature_name({fb[3 * k], fb[3 * k + 1], fb[3 * k + 2]})));
+    return nb::make_tuple(nb::ndarray<nb::numpy, double, nb::shape<30, 3>>(nrm, {30, 3}, own_n),
+                          nb::ndarray<nb::numpy, double, nb::shape<30>>(off, {30}, own_o), features);
 }
-
-void py_check_box(const Vec3 &lo, const Vec3 &hi, const std::string &name) { check_box(lo.data(), hi.data(), name, ""); }
-void py_check_motion(const Coeffs &c, const std::string &name) { check_motion(c.data(), name, ""); }
 
 }  // namespace
 
@@ -179,11 +207,18 @@ NB_MODULE(_core, m) {
         },
         singular.ptr());
 
-    const char *tol_args = "gap_rel, rounding, max_steps: see Tolerances";
-    m.def("check_box", &py_check_box, nb::arg("lo"), nb::arg("hi"), nb::arg("name"));
-    m.def("check_motion", &py_check_motion, nb::arg("coeffs"), nb::arg("name"));
-    m.def("solve", &solve, tol_args);
-    m.def("solve_batch", &solve_batch, tol_args);
-    m.def("sections", &sections, tol_args);
-    m.def("planes", &planes, tol_args);
+    nb::class_<Tolerances>(m, "Tolerances")
+        .def(nb::init<>())
+        .def_rw("gap_rel", &Tolerances::gap_rel)
+        .def_rw("rounding", &Tolerances::rounding)
+        .def_rw("max_steps", &Tolerances::max_steps);
+    nb::class_<BoxData>(m, "BoxData");
+    nb::class_<MotionData>(m, "MotionData");
+    m.def("make_box", &make_box, nb::arg("lo"), nb::arg("hi"), nb::arg("name"));
+    m.def("make_motion", &make_motion, nb::arg("coeffs"), nb::arg("name"));
+    m.def("feature_name", &feature_name, nb::arg("signs"));
+    m.def("solve", &solve);
+    m.def("solve_batch", &solve_batch);
+    m.def("sections", &sections);
+    m.def("planes", &planes);
 }
