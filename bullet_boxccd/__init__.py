@@ -21,6 +21,8 @@ from .solver import (
 )
 
 __all__ = [
+    "BoxCCD",
+    "CCDEvent",
     "Box",
     "QuadraticMotion",
     "Contact",
@@ -39,3 +41,12 @@ __all__ = [
     "SingularMotionError",
     "InvalidTimeRangeError",
 ]
+
+
+def __getattr__(name):
+    # The pybullet adapter is imported on first use, so the solver works without pybullet.
+    if name in ("BoxCCD", "CCDEvent", "CCDStats"):
+        from . import pybullet_ccd
+
+        return getattr(pybullet_ccd, name)
+    raise AttributeError(f"module 'bullet_boxccd' has no attribute {name!r}")

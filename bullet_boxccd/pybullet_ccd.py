@@ -1,0 +1,543 @@
+"""Drop-in tunneling prevention for pybullet worlds (the only module that imports pybullet).
+
+``BoxCCD.step()`` replaces ``p.stepSimulation()``:
+
+1. pybullet takes its step as usual.
+2. The step is swept: every box collision shape that moved more than
+   ``sweep_threshold`` of its own smallest extent gets its exact within-step
+   path, rebuilt from the pose after the step and the post-solve velocities
+   (Bullet moves the centre of mass linearly and turns it about a fixed axis:
+   ``motion.StepPath``), fitted by quadratic motions (split into pieces and the
+   box inflated by the fit's error bound, so the fit is conservative).
+3. Broad phase: swept bounding boxes of the fast boxes against every box
+   (vectorised); the candidate pairs go to the batch solver.
+4. Rewind: for each pair that touched, the first pose on Bullet's own path at
+   which the sharp boxes overlap by ``penetration`` (2e-7 m by default: Bullet's
+   box-box detector makes a contact only from the touching pose on, and a vertex
+   at exactly zero gap can be missed) is found, and the free bodies of the pair
+   are put there with their post-solve velocities. The next step's contact solver
+   handles the impact, so nothing ends on the far side.
+
+Why sweep after the step rather than predict before it: the path depends on the
+post-solve velocity, which is known only after pybullet solved the step's
+contacts; afterwards the path is exact, not predicted.
+
+Frames: ``getCollisionShapeData`` gives a box's full extents and its frame
+relative to the link's centre-of-mass frame; ``getBasePositionAndOrientation``
+and ``getLinkState(...)[0:2]`` give centre-of-mass frames. Maximal-coordinate
+bodies do not answer ``getCollisionShapeData``: register their boxes with
+``BoxCCD.register_box``. pybullet cannot report collision filters back, so
+filters set directly on pybullet are invisible here: set them through
+``BoxCCD.set_collision_filter_pair`` (which also calls pybullet).
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from typing import Optional
+
+import numpy as np
+import pybullet as p
+
+from .geometry import Box
+from .motion import QuadraticMotion, StepPath, matrix_to_quat, quat_to_matrix
+from .solver import DEFAULT_TOLERANCES, Contact, Feature, Tolerances, time_of_impact, time_of_impact_batch
+
+__all__ = ["BoxCCD", "CCDEvent", "CCDStats"]
+
+_SIGNS = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)], dtype=float)
+
+
+@dataclass(frozen=True)
+class CCDEvent:
+    """A contact found by sweeping a step.
+
+    ``tau`` is the contact's fraction of the step (0 = start, 1 = end) and ``time``
+    the same in seconds after the step started; ``point`` and ``normal`` (unit,
+    from box A towards box B) are world coordinates at the first touch;
+    ``feature`` names the BMS plane; ``rewound`` says whether the free bodies of
+    the pair were put back at the contact (False for a graze shallower than the
+    rewind depth, or when neither body can be rewound).
+    """
+
+    body_a: int
+    link_a: int
+    body_b: int
+    link_b: int
+    tau: float
+    time: float
+    point: np.ndarray
+    normal: np.ndarray
+    feature: Feature
+    rewound: bool
+
+
+@dataclass
+class CCDStats:
+    """Counters since construction (``steps``, ``tracked_boxes`` is the current count)."""
+
+    steps: int = 0
+    tracked_boxes: int = 0
+    swept_boxes: int = 0
+    candidate_pairs: int = 0
+    solver_rows: int = 0
+    contacts: int = 0
+    rewinds: int = 0
+    held: int = 0  # contacts pybullet left unresolved, released by BoxCCD._release_held
+    seconds: dict = field(default_factory=lambda: dict.fromkeys(
+        ("step", "state", "broad_phase", "solve", "rewind"), 0.0))
+
+
+@dataclass
+class _Frames:
+    """Rigid frames (body, link) that carry boxes, and their boxes (parallel arrays)."""
+
+    body: np.ndarray  # (F,) int
+    link: np.ndarray  # (F,) int
+    static: np.ndarray  # (F,) bool: never moves (mass-0 body without joints)
+    rewindable: np.ndarray  # (F,) bool: the base of a free single rigid body
+    box_frame: np.ndarray  # (B,) int: index into the frames
+    half: np.ndarray  # (B, 3) half extents
+    X_CS: np.ndarray  # (B, 4, 4): box frame in its frame's centre-of-mass frame
+    radius: np.ndarray  # (B,) farthest box point from the centre of mass
+
+
+class BoxCCD:
+    """Continuous collision detection for every box in a pybullet world.
+
+    Parameters
+    ----------
+    physics_client_id : int
+    sweep_threshold : float
+        A box is swept when its fastest point moves more than this fraction of the
+        box's smallest full extent in a step (a slower box overlaps anything it
+        meets in some step, so pybullet's discrete contacts catch it). Default 0.25.
+    fit_tolerance : float
+        Largest allowed error of the quadratic rotation fit, as a fraction of the
+        box's smallest half extent; a step is split into 2, 4, ... pieces until it
+        holds, and the box is inflated by what remains. Default 0.05.
+    penetration : float
+        Depth (m) of the rewound overlap of the sharp boxes. Default 2e-7.
+    self_collision_bodies : iterable of int
+        Bodies whose links collide with each other (pybullet cannot report it).
+    tolerances : Tolerances
+        Solver tolerances.
+    """
+
+    def __init__(self, physics_client_id: int = 0, *, sweep_threshold: float = 0.25,
+                 fit_tolerance: float = 0.05, penetration: float = 2e-7, self_collision_bodies=(),
+                 tolerances: Tolerances = DEFAULT_TOLERANCES):
+        self.cid = physics_client_id
+        self.sweep_threshold = float(sweep_threshold)
+        self.fit_tolerance = float(fit_tolerance)
+        self.penetration = float(penetration)
+        self.hold_fraction = 0.01
+        self.self_collision_bodies = set(int(b) for b in self_collision_bodies)
+        self.tolerances = tolerances
+        self.stats = CCDStats()
+        self._filtered: set = set()
+        self._registered: dict = {}  # (body, link) -> list of (half, X_CS)
+        self._non_box: list = []
+        self._unreadable: list = []
+        self._world_key = None
+        self.refresh()
+
+    # ------------------------------------------------------------ discovery
+    def _world_signature(self):
+        n = p.getNumBodies(physicsClientId=self.cid)
+        return n, (p.getBodyUniqueId(n - 1, physicsClientId=self.cid) if n else -1)
+
+    def register_box(self, body: int, link: int, half_extents, position=(0.0, 0.0, 0.0),
+                     orientation=(0.0, 0.0, 0.0, 1.0)) -> None:
+        """Declare a box on a frame whose shapes pybullet cannot report (maximal-coordinate
+        bodies). ``position``/``orientation`` place the box in the link's
+        centre-of-mass frame, as ``getCollisionShapeData`` would."""
+        X = np.eye(4)
+        X[:3, :3] = quat_to_matrix(orientation)
+        X[:3, 3] = position
+        Box.centered(half_extents)  # validates
+        self._registered.setdefault((int(body), int(link)), []).append((np.asarray(half_extents, float), X))
+        self.refresh()
+
+    def set_collision_filter_pair(self, body_a: int, body_b: int, link_a: int, link_b: int, enable: bool) -> None:
+        """``p.setCollisionFilterPair`` that the plugin also honours."""
+        p.setCollisionFilterPair(body_a, body_b, link_a, link_b, int(enable), physicsClientId=self.cid)
+        key = _pair_key((body_a, link_a), (body_b, link_b))
+        if enable:
+            self._filtered.discard(key)
+        else:
+            self._filtered.add(key)
+
+    def refresh(self) -> None:
+        """Rediscover every box in the world (called automatically when bodies are added or removed)."""
+        cid = self.cid
+        body, link, static, rewind, box_frame, half, X_CS = [], [], [], [], [], [], []
+        self._non_box, self._unreadable = [], []
+        for i in range(p.getNumBodies(physicsClientId=cid)):
+            b = p.getBodyUniqueId(i, physicsClientId=cid)
+            n_joints = p.getNumJoints(b, physicsClientId=cid)
+            for lk in range(-1, n_joints):
+                shapes = self._shapes(b, lk)
+                if not shapes:
+                    continue
+                dyn = p.getDynamicsInfo(b, lk, physicsClientId=cid)
+                base_mass = dyn[0] if lk == -1 else p.getDynamicsInfo(b, -1, physicsClientId=cid)[0]
+                body.append(b)
+                link.append(lk)
+                static.append(n_joints == 0 and base_mass == 0.0)
+                rewind.append(n_joints == 0 and base_mass > 0.0)
+                for h, X in shapes:
+                    box_frame.append(len(body) - 1)
+                    half.append(h)
+                    X_CS.append(X)
+        half = np.array(half, dtype=float).reshape(-1, 3)
+        X_CS = np.array(X_CS, dtype=float).reshape(-1, 4, 4)
+        radius = np.linalg.norm(X_CS[:, :3, 3], axis=1) + np.linalg.norm(half, axis=1)
+        self._frames = _Frames(np.array(body, int), np.array(link, int), np.array(static, bool),
+                               np.array(rewind, bool), np.array(box_frame, int), half, X_CS, radius)
+        self._frame_index = {(b, lk): i for i, (b, lk) in enumerate(zip(body, link))}
+        self._static_pose = self._read_poses(np.flatnonzero(self._frames.static))[0]
+        self.stats.tracked_boxes = len(half)
+        self._world_key = self._world_signature()
+
+    def _shapes(self, b, lk):
+        if (b, lk) in self._registered:
+            return self._registered[(b, lk)]
+        try:
+            data = p.getCollisionShapeData(b, lk, physicsClientId=self.cid)
+        except p.error:
+            if p.getDynamicsInfo(b, lk, physicsClientId=self.cid)[10] == 1:  # maximal coordinates
+                self._unreadable.append((b, lk))
+            return []
+        out = []
+        for d in data:
+            if d[2] != p.GEOM_BOX:
+                self._non_box.append((b, lk, d[2]))
+                continue
+            X = np.eye(4)
+            X[:3, :3] = quat_to_matrix(d[6])
+            X[:3, 3] = d[5]
+            out.append((0.5 * np.asarray(d[3], float), X))
+        return out
+
+    def summary(self) -> str:
+        """What is tracked, what is left to pybullet, and what needs registering."""
+        names = {p.GEOM_SPHERE: "sphere", p.GEOM_CAPSULE: "capsule", p.GEOM_CYLINDER: "cylinder",
+                 p.GEOM_MESH: "mesh", p.GEOM_PLANE: "plane"}
+        fr = self._frames
+        lines = [f"BoxCCD: {len(fr.half)} boxes on {len(fr.body)} links of "
+                 f"{len(set(fr.body.tolist()))} bodies ({int(fr.static.sum())} static links)"]
+        for b, lk, g in self._non_box:
+            lines.append(f"  left to pybullet: body {b} link {lk}: {names.get(g, g)}")
+        for b, lk in self._unreadable:
+            lines.append(f"  maximal-coordinate body {b} link {lk}: shapes unreadable, use register_box()")
+        return "\n".join(lines)
+
+    # ------------------------------------------------------------ per step
+    def _read_poses(self, frames):
+        """(F, 4, 4) centre-of-mass poses and (F, 3) v, w of the given frame indices."""
+        cid, fr = self.cid, self._frames
+        X = np.tile(np.eye(4), (len(frames), 1, 1))
+        v = np.zeros((len(frames), 3))
+        w = np.zeros((len(frames), 3))
+        quats = np.zeros((len(frames), 4))
+        for k, f in enumerate(frames):
+            b, lk = int(fr.body[f]), int(fr.link[f])
+            if lk == -1:
+                pos, quats[k] = p.getBasePositionAndOrientation(b, physicsClientId=cid)
+                v[k], w[k] = p.getBaseVelocity(b, physicsClientId=cid)
+            else:
+                s = p.getLinkState(b, lk, computeLinkVelocity=1, physicsClientId=cid)
+                pos, quats[k], v[k], w[k] = s[0], s[1], s[6], s[7]
+            X[k, :3, 3] = pos
+        if len(frames):
+            X[:, :3, :3] = quat_to_matrix(quats)
+        return X, v, w
+
+    def step(self) -> list:
+        """``p.stepSimulation()`` followed by the sweep and rewind; returns this step's contacts."""
+        t_start = time.perf_counter()
+        if self._world_signature() != self._world_key:
+            self.refresh()
+        params = p.getPhysicsEngineParameters(physicsClientId=self.cid)
+        if params.get("numSubSteps", 0) > 1:
+            raise ValueError("BoxCCD sweeps whole steps: set numSubSteps to 0 or 1 (it replaces substepping)")
+        dt = params["fixedTimeStep"]
+        p.stepSimulation(physicsClientId=self.cid)
+        t_sim = time.perf_counter()
+        events = self._sweep(dt, t_sim)
+        self.stats.steps += 1
+        self.stats.seconds["step"] += t_sim - t_start
+        return events
+
+    def _sweep(self, dt, t0):
+        fr, st = self._frames, self.stats
+        n_frames = len(fr.body)
+        if not len(fr.half):
+            return []
+        dynamic = np.flatnonzero(~fr.static)
+        X1 = np.empty((n_frames, 4, 4))
+        v = np.zeros((n_frames, 3))
+        w = np.zeros((n_frames, 3))
+        X1[fr.static] = self._static_pose
+        X1[dynamic], v[dynamic], w[dynamic] = self._read_poses(dynamic)
+        path = StepPath(X1, v, w, dt)
+        # Fast boxes: the farthest point moves more than the threshold.
+        bf = fr.box_frame
+        reach = np.linalg.norm(path.dv, axis=1)[bf] + path.angle[bf] * fr.radius
+        fast = reach > self.sweep_threshold * 2.0 * fr.half.min(axis=1)
+        t1 = time.perf_counter()
+        st.seconds["state"] += t1 - t0
+        if not fast.any():
+            return []
+        st.swept_boxes += int(fast.sum())
+        pairs = self._candidate_pairs(path, fast, reach)
+        t2 = time.perf_counter()
+        st.seconds["broad_phase"] += t2 - t1
+        st.candidate_pairs += len(pairs)
+        if not len(pairs):
+            return []
+        hits = self._solve_pairs(path, pairs)
+        t3 = time.perf_counter()
+        st.seconds["solve"] += t3 - t2
+        events = self._resolve(path, hits, dt)
+        st.seconds["rewind"] += time.perf_counter() - t3
+        return events
+
+    def _box_poses(self, path, boxes, tau):
+        return path.at(tau)[self._frames.box_frame[boxes]] @ self._frames.X_CS[boxes]
+
+    def _candidate_pairs(self, path, fast, reach):
+        """(P, 2) box index pairs whose swept bounding boxes meet, at least one box fast."""
+        fr = self._frames
+        n = len(fr.half)
+        lo = np.empty((n, 3))
+        hi = np.empty((n, 3))
+        # Exact bounds at five poses along the path, widened by the largest
+        # deviation of a vertex's arc from its chords between them.
+        taus = np.linspace(0.0, 1.0, 5)
+        verts_local = _SIGNS[None] * fr.half[:, None, :]  # (B, 8, 3)
+        frame_poses = [path.at(t) for t in taus]
+        sag = fr.radius * (0.25 * path.angle[fr.box_frame]) ** 2 / 8.0
+        for k, X in enumerate(frame_poses):
+            Xb = X[fr.box_frame] @ fr.X_CS
+            V = np.einsum("bij,bvj->bvi", Xb[:, :3, :3], verts_local) + Xb[:, None, :3, 3]
+            vlo, vhi = V.min(axis=1), V.max(axis=1)
+            lo = vlo if k == 0 else np.minimum(lo, vlo)
+            hi = vhi if k == 0 else np.maximum(hi, vhi)
+        lo -= sag[:, None] + 1e-9
+        hi += sag[:, None] + 1e-9
+        idx_fast = np.flatnonzero(fast)
+        overlap = np.all((lo[idx_fast, None, :] <= hi[None, :, :]) & (lo[None, :, :] <= hi[idx_fast, None, :]), axis=2)
+        i, j = np.nonzero(overlap)
+        a, b = idx_fast[i], j
+        keep = (a != b) & ~(fast[b] & (b < a))  # each fast-fast pair once
+        a, b = a[keep], b[keep]
+        fa, fb = fr.box_frame[a], fr.box_frame[b]
+        body_a, body_b = fr.body[fa], fr.body[fb]
+        keep = fa != fb  # boxes of one link never collide with each other
+        same_body = body_a == body_b
+        if same_body.any():
+            allowed = np.array([int(x) in self.self_collision_bodies for x in body_a])
+            keep &= ~same_body | allowed
+        keep &= ~(fr.static[fa] & fr.static[fb])
+        if self._filtered:
+            keep &= np.array([_pair_key((int(body_a[k]), int(fr.link[fa[k]])), (int(body_b[k]), int(fr.link[fb[k]])))
+                              not in self._filtered for k in range(len(a))], dtype=bool)
+        return np.stack([a[keep], b[keep]], axis=1)
+
+    def _solve_pairs(self, path, pairs):
+        """First contact of each candidate pair on the fitted (conservative) motion.
+
+        Returns a list of (box a, box b, tau_first) for the pairs that touch."""
+        fr, st = self._frames, self.stats
+        boxes = np.unique(pairs)
+        frames = fr.box_frame[boxes]
+        min_half = fr.half[boxes].min(axis=1)
+        # Pieces per box: powers of two until the fit error is within tolerance.
+        err1 = 2.0 * np.sqrt(3.0) / 216.0 * path.angle[frames] ** 3 * fr.radius[boxes]
+        pieces = np.ones(len(boxes), int)
+        while True:
+            over = err1 / pieces**3 > self.fit_tolerance * min_half
+            if not over.any() or pieces.max() >= 64:
+                break
+            pieces[over] *= 2
+        slot = {int(b): k for k, b in enumerate(boxes)}
+        pa = np.array([slot[int(x)] for x in pairs[:, 0]])
+        pb = np.array([slot[int(x)] for x in pairs[:, 1]])
+        n_pair = np.maximum(pieces[pa], pieces[pb])
+        hits = []
+        for n in np.unique(n_pair):
+            rows = np.flatnonzero(n_pair == n)
+            sel = np.unique(np.concatenate([pa[rows], pb[rows]]))
+            sub = np.full(len(boxes), -1)
+            sub[sel] = np.arange(len(sel))
+            coeffs, err = path.take(frames[sel]).fit(fr.X_CS[boxes[sel]], int(n))
+            # Inflate by the fit's reach: a point at distance r is off by err * r,
+            # and a unit ball fits in the sheared box once scaled by 1 / (1 - err).
+            grow = err * fr.radius[boxes[sel]] / np.maximum(1.0 - err, 0.5)
+            half = fr.half[boxes[sel]] + grow[:, None]
+            ia, ib = sub[pa[rows]], sub[pb[rows]]
+            for k in range(int(n)):
+                t = time_of_impact_batch(-half[ia], half[ia], coeffs[k, ia], -half[ib], half[ib], coeffs[k, ib],
+                                         (0.0, 1.0), self.tolerances)
+                st.solver_rows += len(rows)
+                for r in np.flatnonzero(~np.isnan(t)):
+                    hits.append((int(boxes[sel[ia[r]]]), int(boxes[sel[ib[r]]]), (k + t[r]) / n, k, int(n)))
+        # Keep each pair's earliest piece.
+        first = {}
+        for a, b, tau, k, n in hits:
+            if (a, b) not in first or tau < first[(a, b)][0]:
+                first[(a, b)] = (tau, k, n)
+        return [(a, b, tau) for (a, b), (tau, k, n) in first.items()]
+
+    def _resolve(self, path, hits, dt):
+        """Events and rewinds: each free body goes to its earliest rewind time."""
+        fr, st = self._frames, self.stats
+        stop = {}
+        found = []
+        for a, b, tau in sorted(hits, key=lambda h: h[2]):
+            tau_b = self._rewind_time(path, a, b, tau)
+            if tau == 0.0 and tau_b is None:
+                continue  # touching at the start and not deepening: pybullet's own contact
+            found.append((a, b, tau, tau_b))
+            if tau_b is None:
+                continue
+            for f in fr.box_frame[[a, b]]:
+                if fr.rewindable[f] and tau_b < stop.get(int(f), np.inf):
+                    stop[int(f)] = tau_b
+        events = []
+        v_new = {}
+        for a, b, tau, tau_b in found:
+            fa, fb = int(fr.box_frame[a]), int(fr.box_frame[b])
+            c = self._contact(path, a, b, tau, 1.0 if tau_b is None else tau_b)
+            rewound = tau_b is not None and tau_b in (stop.get(fa), stop.get(fb))
+            if rewound and tau == 0.0 and tau_b < self.hold_fraction:
+                self._release_held(path, fa, fb, c.normal, v_new)
+            events.append(CCDEvent(int(fr.body[fa]), int(fr.link[fa]), int(fr.body[fb]), int(fr.link[fb]),
+                                   c.t, c.t * dt, c.point, c.normal, c.feature, rewound))
+        st.contacts += len(events)
+        if stop:
+            frames = np.array(sorted(stop))
+            X = path.take(frames).at(np.array([stop[f] for f in frames]))
+            quats = matrix_to_quat(X[:, :3, :3])
+            for k, f in enumerate(frames):
+                b = int(fr.body[f])
+                p.resetBasePositionAndOrientation(b, X[k, :3, 3].tolist(), quats[k].tolist(), physicsClientId=self.cid)
+                # The reset zeroes the velocity: give back the post-solve one.
+                p.resetBaseVelocity(b, v_new.get(f, path.v[f]).tolist(), path.w[f].tolist(), physicsClientId=self.cid)
+            st.rewinds += len(frames)
+        return events
+
+    def _release_held(self, path, fa, fb, normal, v_new):
+        """A contact pybullet left unresolved: the pair touched when the step began and
+        still presses in almost at once (a fast-spinning body pivoting on a vertex,
+        whose contact point pybullet saw separating). Held in place it would stay
+        stuck, so the approach along the contact normal is resolved here as a 1-D
+        collision of the two centres of mass with pybullet's combined restitution
+        (momentum is conserved; spins are left to pybullet)."""
+        fr, cid = self._frames, self.cid
+        if not np.all(np.isfinite(normal)):
+            return
+        m, e, v = [], 1.0, []
+        for f in (fa, fb):
+            info = p.getDynamicsInfo(int(fr.body[f]), int(fr.link[f]), physicsClientId=cid)
+            m.append(info[0] if fr.rewindable[f] else np.inf)
+            e *= info[5]
+            v.append(v_new.get(f, path.v[f]))
+        approach = float(np.dot(v[1] - v[0], normal))  # < 0: B moves towards A
+        if approach >= 0.0 or not (np.isfinite(m[0]) or np.isfinite(m[1])):
+            return
+        w_a = 1.0 if not np.isfinite(m[1]) else (0.0 if not np.isfinite(m[0]) else m[1] / (m[0] + m[1]))
+        dv = (1.0 + e) * approach * normal
+        if fr.rewindable[fa]:
+            v_new[fa] = v[0] + w_a * dv
+        if fr.rewindable[fb]:
+            v_new[fb] = v[1] - (1.0 - w_a) * dv
+        self.stats.held += 1
+
+    def _contact(self, path, a, b, lo, hi):
+        """The first touch of a pair known to touch in [lo, hi] (step fractions): one solve
+        on a quadratic refit of the exact path over that window, the boxes inflated by
+        the refit's error bound so that the touch cannot be missed."""
+        fr = self._frames
+        frames = fr.box_frame[[a, b]]
+        sub = path.take(frames)
+        if hi - lo < 1e-12:
+            lo = max(0.0, hi - 1e-12)
+        times = (lo, 0.5 * (lo + hi), hi)
+        X = [sub.at(t) @ fr.X_CS[[a, b]] for t in times]
+        err = 2.0 * np.sqrt(3.0) / 216.0 * (sub.angle * (hi - lo)) ** 3
+        grow = err * fr.radius[[a, b]] / np.maximum(1.0 - err, 0.5) + 1e-12 * fr.radius[[a, b]]
+        boxes = [Box.centered(fr.half[q] + grow[k]) for k, q in enumerate((a, b))]
+        motions = [QuadraticMotion.through(times, [x[k] for x in X]) for k in range(2)]
+        c = time_of_impact(boxes[0], motions[0], boxes[1], motions[1], times[::2], self.tolerances)
+        if c is None:  # cannot happen for a true touch; report the window start
+            return Contact(lo, np.full(3, np.nan), np.full(3, np.nan), Feature("", "", ""), lo == 0.0)
+        return c
+
+    def _rewind_time(self, path, a, b, tau_first):
+        """The first tau >= tau_first on Bullet's exact path at which the sharp boxes
+        overlap by ``penetration`` more than when the step began (0 if apart then);
+        None if they never do in this step (a graze, or a contact pybullet holds)."""
+        fr = self._frames
+        frames = fr.box_frame[[a, b]]
+        sub = path.take(frames)
+        halves = fr.half[[a, b]]
+
+        def depth(taus):
+            Xb = np.stack([sub.at(t) for t in np.asarray(taus, float)]) @ fr.X_CS[[a, b]]  # (K, 2, 4, 4)
+            V = [np.einsum("kij,vj->kvi", Xb[:, q, :3, :3], _SIGNS * halves[q]) + Xb[:, q, None, :3, 3]
+                 for q in range(2)]
+            return _sat_depth(V[0], V[1])
+
+        target = self.penetration
+        if tau_first == 0.0:
+            # Touching when the step began: pybullet resolved that contact, but a
+            # spinning body can still curve into its partner. Let the overlap grow
+            # to a quarter of the thinner box before stepping in, so that pybullet's
+            # penetration recovery acts on it; past that, hold it where it is.
+            thinner = 2.0 * halves.min()
+            target = max(float(depth([0.0])[0]) + self.penetration, 0.25 * thinner)
+        # Geometric look-ahead from the conservative first touch: offsets 2^-j of the
+        # rest of the step catch the first overlap even for a fast pass through a thin wall.
+        span = 1.0 - tau_first
+        offsets = span * 2.0 ** -np.arange(48, -1, -1.0)
+        d = depth(tau_first + offsets)
+        inside = np.flatnonzero(d >= target)
+        if not len(inside):
+            return None
+        k = inside[0]
+        lo = tau_first + (offsets[k - 1] if k > 0 else 0.0)
+        hi = tau_first + offsets[k]
+        for _ in range(8):  # 33 samples a round: the bracket shrinks 32x per round
+            ts = np.linspace(lo, hi, 33)
+            above = depth(ts) >= target
+            j = int(np.flatnonzero(above)[0]) if above.any() else 32
+            lo, hi = ts[max(j - 1, 0)], ts[j]
+            if hi - lo <= 1e-15:
+                break
+        return float(hi)
+
+
+def _pair_key(x, y):
+    return (x, y) if x <= y else (y, x)
+
+
+def _sat_depth(VA, VB):
+    """Penetration depth of pairs of vertex sets (K, 8, 3) by the separating-axis test over
+    the 15 box axes: > 0 overlapping by that much, <= 0 apart (minus the gap)."""
+    ea = np.stack([VA[:, 4] - VA[:, 0], VA[:, 2] - VA[:, 0], VA[:, 1] - VA[:, 0]], axis=1)
+    eb = np.stack([VB[:, 4] - VB[:, 0], VB[:, 2] - VB[:, 0], VB[:, 1] - VB[:, 0]], axis=1)
+    axes = np.concatenate([ea, eb, np.cross(ea[:, :, None, :], eb[:, None, :, :]).reshape(-1, 9, 3)], axis=1)
+    lens = np.concatenate([np.linalg.norm(ea, axis=2), np.linalg.norm(eb, axis=2),
+                           (np.linalg.norm(ea, axis=2)[:, :, None] * np.linalg.norm(eb, axis=2)[:, None, :]).reshape(-1, 9)],
+                          axis=1)
+    n = np.linalg.norm(axes, axis=2)
+    ok = n > 1e-9 * lens  # parallel edges give no axis
+    u = axes / np.where(ok, n, 1.0)[..., None]
+    pa = np.einsum("kaj,kvj->kav", u, VA)
+    pb = np.einsum("kaj,kvj->kav", u, VB)
+    overlap = np.minimum(pa.max(2) - pb.min(2), pb.max(2) - pa.min(2))
+    return np.where(ok, overlap, np.inf).min(axis=1)
