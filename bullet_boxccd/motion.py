@@ -162,11 +162,35 @@ def quat_to_matrix(q) -> np.ndarray:
 
 
 def matrix_to_quat(R) -> np.ndarray:
-    """(..., 4) quaternions (x, y, z, w) of (..., 3, 3) rotation matrices."""
-    from scipy.spatial.transform import Rotation
-
+    """(..., 4) unit quaternions (x, y, z, w) of (..., 3, 3) rotation matrices (Shepperd:
+    each from the largest of w^2, x^2, y^2, z^2, so none divides by a small number)."""
     R = np.asarray(R, dtype=float)
-    return Rotation.from_matrix(R.reshape(-1, 3, 3)).as_quat().reshape(R.shape[:-2] + (4,))
+    m = R.reshape(-1, 3, 3)
+    tr = np.trace(m, axis1=1, axis2=2)
+    cand = np.stack([tr, m[:, 0, 0], m[:, 1, 1], m[:, 2, 2]], axis=1)
+    k = np.argmax(cand, axis=1)
+    q = np.empty((len(m), 4))
+    for case in range(4):
+        sel = k == case
+        if not sel.any():
+            continue
+        a = m[sel]
+        if case == 0:
+            s = 2.0 * np.sqrt(1.0 + tr[sel])
+            q[sel] = np.stack([(a[:, 2, 1] - a[:, 1, 2]) / s, (a[:, 0, 2] - a[:, 2, 0]) / s,
+                               (a[:, 1, 0] - a[:, 0, 1]) / s, 0.25 * s], axis=1)
+        else:
+            i = case - 1
+            j, l = (i + 1) % 3, (i + 2) % 3
+            s = 2.0 * np.sqrt(1.0 + a[:, i, i] - a[:, j, j] - a[:, l, l])
+            qi = np.empty((len(a), 4))
+            qi[:, i] = 0.25 * s
+            qi[:, j] = (a[:, j, i] + a[:, i, j]) / s
+            qi[:, l] = (a[:, l, i] + a[:, i, l]) / s
+            qi[:, 3] = (a[:, l, j] - a[:, j, l]) / s
+            q[sel] = qi
+    q /= np.linalg.norm(q, axis=1, keepdims=True)
+    return q.reshape(R.shape[:-2] + (4,))
 
 
 def bullet_step_angle(angular_speed, dt: float) -> np.ndarray:
@@ -215,11 +239,18 @@ class StepPath:
         return StepPath(self.X_W1[index], self.v[index], self.w[index], self.dt)
 
     def at(self, tau) -> np.ndarray:
-        """(N, 4, 4) poses at step fraction ``tau`` (scalar or (N,))."""
-        back = np.broadcast_to(np.asarray(tau, dtype=float) - 1.0, self.angle.shape)
-        X = np.array(self.X_W1)
-        X[:, :3, :3] = _rodrigues(self.axis, back * self.angle) @ self.X_W1[:, :3, :3]
-        X[:, :3, 3] = self.X_W1[:, :3, 3] + back[:, None] * self.dv
+        """(N, 4, 4) poses at step fraction ``tau`` (a scalar, or (N,): one per frame)."""
+        return self._at(np.broadcast_to(np.asarray(tau, dtype=float), self.angle.shape))
+
+    def at_times(self, taus) -> np.ndarray:
+        """(K, N, 4, 4) poses of every frame at each of the step fractions ``taus`` (K,)."""
+        return self._at(np.asarray(taus, dtype=float)[:, None] + np.zeros_like(self.angle))
+
+    def _at(self, tau) -> np.ndarray:
+        back = tau - 1.0  # (..., N)
+        X = np.broadcast_to(self.X_W1, back.shape + (4, 4)).copy()
+        X[..., :3, :3] = _rodrigues(self.axis, back * self.angle) @ self.X_W1[:, :3, :3]
+        X[..., :3, 3] = self.X_W1[:, :3, 3] + back[..., None] * self.dv
         return X
 
     def fit(self, X_CS, pieces: int = 1):

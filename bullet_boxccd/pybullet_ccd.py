@@ -40,6 +40,7 @@ from typing import Optional
 import numpy as np
 import pybullet as p
 
+from . import _core
 from .geometry import Box
 from .motion import QuadraticMotion, StepPath, matrix_to_quat, quat_to_matrix
 from .solver import DEFAULT_TOLERANCES, Contact, Feature, Tolerances, time_of_impact, time_of_impact_batch
@@ -318,7 +319,7 @@ class BoxCCD:
         # deviation of a vertex's arc from its chords between them.
         taus = np.linspace(0.0, 1.0, 5)
         verts_local = _SIGNS[None] * fr.half[:, None, :]  # (B, 8, 3)
-        frame_poses = [path.at(t) for t in taus]
+        frame_poses = path.at_times(taus)
         sag = fr.radius * (0.25 * path.angle[fr.box_frame]) ** 2 / 8.0
         for k, X in enumerate(frame_poses):
             Xb = X[fr.box_frame] @ fr.X_CS
@@ -467,7 +468,7 @@ class BoxCCD:
         if hi - lo < 1e-12:
             lo = max(0.0, hi - 1e-12)
         times = (lo, 0.5 * (lo + hi), hi)
-        X = [sub.at(t) @ fr.X_CS[[a, b]] for t in times]
+        X = sub.at_times(times) @ fr.X_CS[[a, b]]
         err = 2.0 * np.sqrt(3.0) / 216.0 * (sub.angle * (hi - lo)) ** 3
         grow = err * fr.radius[[a, b]] / np.maximum(1.0 - err, 0.5) + 1e-12 * fr.radius[[a, b]]
         boxes = [Box.centered(fr.half[q] + grow[k]) for k, q in enumerate((a, b))]
@@ -477,67 +478,31 @@ class BoxCCD:
             return Contact(lo, np.full(3, np.nan), np.full(3, np.nan), Feature("", "", ""), lo == 0.0)
         return c
 
+    def _path_boxes(self, path, a, b):
+        """(2, 42) the pair's exact paths, as _core.first_depth takes them."""
+        fr = self._frames
+        out = np.empty((2, 42))
+        for q, box in enumerate((a, b)):
+            f = fr.box_frame[box]
+            out[q] = np.concatenate([path.X_W1[f].ravel(), path.dv[f], path.axis[f], [path.angle[f]],
+                                     fr.X_CS[box].ravel(), fr.half[box]])
+        return out
+
     def _rewind_time(self, path, a, b, tau_first):
         """The first tau >= tau_first on Bullet's exact path at which the sharp boxes
-        overlap by ``penetration`` more than when the step began (0 if apart then);
-        None if they never do in this step (a graze, or a contact pybullet holds)."""
-        fr = self._frames
-        frames = fr.box_frame[[a, b]]
-        sub = path.take(frames)
-        halves = fr.half[[a, b]]
-
-        def depth(taus):
-            Xb = np.stack([sub.at(t) for t in np.asarray(taus, float)]) @ fr.X_CS[[a, b]]  # (K, 2, 4, 4)
-            V = [np.einsum("kij,vj->kvi", Xb[:, q, :3, :3], _SIGNS * halves[q]) + Xb[:, q, None, :3, 3]
-                 for q in range(2)]
-            return _sat_depth(V[0], V[1])
-
+        overlap by ``penetration`` (None if they never do in this step: a graze)."""
+        boxes = self._path_boxes(path, a, b)
         target = self.penetration
         if tau_first == 0.0:
             # Touching when the step began: pybullet resolved that contact, but a
             # spinning body can still curve into its partner. Let the overlap grow
             # to a quarter of the thinner box before stepping in, so that pybullet's
             # penetration recovery acts on it; past that, hold it where it is.
-            thinner = 2.0 * halves.min()
-            target = max(float(depth([0.0])[0]) + self.penetration, 0.25 * thinner)
-        # Geometric look-ahead from the conservative first touch: offsets 2^-j of the
-        # rest of the step catch the first overlap even for a fast pass through a thin wall.
-        span = 1.0 - tau_first
-        offsets = span * 2.0 ** -np.arange(48, -1, -1.0)
-        d = depth(tau_first + offsets)
-        inside = np.flatnonzero(d >= target)
-        if not len(inside):
-            return None
-        k = inside[0]
-        lo = tau_first + (offsets[k - 1] if k > 0 else 0.0)
-        hi = tau_first + offsets[k]
-        for _ in range(8):  # 33 samples a round: the bracket shrinks 32x per round
-            ts = np.linspace(lo, hi, 33)
-            above = depth(ts) >= target
-            j = int(np.flatnonzero(above)[0]) if above.any() else 32
-            lo, hi = ts[max(j - 1, 0)], ts[j]
-            if hi - lo <= 1e-15:
-                break
-        return float(hi)
+            d0 = float(_core.path_depth(boxes, np.zeros(1))[0])
+            target = max(d0 + self.penetration, 0.5 * self._frames.half[[a, b]].min())
+        tau = _core.first_depth(boxes, tau_first, target)
+        return None if np.isnan(tau) else float(tau)
 
 
 def _pair_key(x, y):
     return (x, y) if x <= y else (y, x)
-
-
-def _sat_depth(VA, VB):
-    """Penetration depth of pairs of vertex sets (K, 8, 3) by the separating-axis test over
-    the 15 box axes: > 0 overlapping by that much, <= 0 apart (minus the gap)."""
-    ea = np.stack([VA[:, 4] - VA[:, 0], VA[:, 2] - VA[:, 0], VA[:, 1] - VA[:, 0]], axis=1)
-    eb = np.stack([VB[:, 4] - VB[:, 0], VB[:, 2] - VB[:, 0], VB[:, 1] - VB[:, 0]], axis=1)
-    axes = np.concatenate([ea, eb, np.cross(ea[:, :, None, :], eb[:, None, :, :]).reshape(-1, 9, 3)], axis=1)
-    lens = np.concatenate([np.linalg.norm(ea, axis=2), np.linalg.norm(eb, axis=2),
-                           (np.linalg.norm(ea, axis=2)[:, :, None] * np.linalg.norm(eb, axis=2)[:, None, :]).reshape(-1, 9)],
-                          axis=1)
-    n = np.linalg.norm(axes, axis=2)
-    ok = n > 1e-9 * lens  # parallel edges give no axis
-    u = axes / np.where(ok, n, 1.0)[..., None]
-    pa = np.einsum("kaj,kvj->kav", u, VA)
-    pb = np.einsum("kaj,kvj->kav", u, VB)
-    overlap = np.minimum(pa.max(2) - pb.min(2), pb.max(2) - pa.min(2))
-    return np.where(ok, overlap, np.inf).min(axis=1)

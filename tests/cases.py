@@ -6,7 +6,7 @@ import numpy as np
 
 from bullet_boxccd import QuadraticMotion
 from bullet_boxccd.motion import rotation_matrix
-from tests.oracle import Case
+from oracle import Case
 
 FAMILIES = ("ballistic", "rotating", "one_static", "both_moving", "off_centre", "thin_plates")
 

@@ -1,4 +1,9 @@
 import os
+import sys
+
+# The oracle and the case generator are plain modules beside the tests; the
+# package under test is the installed one (pytest runs with --import-mode=importlib).
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
 from hypothesis import HealthCheck, settings
 

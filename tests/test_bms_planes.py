@@ -10,8 +10,8 @@ from scipy.spatial import ConvexHull
 
 from bullet_boxccd import Box, QuadraticMotion, bms_planes, sections
 from bullet_boxccd.geometry import feature_name
-from tests.cases import FAMILIES, make_case
-from tests.oracle import SIGNS, world_vertices
+from cases import FAMILIES, make_case
+from oracle import SIGNS, world_vertices
 
 
 def hull_facets(VA, VB, L):

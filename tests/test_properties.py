@@ -9,8 +9,8 @@ from hypothesis import strategies as st
 
 from bullet_boxccd import Box, QuadraticMotion, time_of_impact
 from bullet_boxccd.motion import rotation_matrix
-from tests.cases import FAMILIES, make_case
-from tests.oracle import mp_gap
+from cases import FAMILIES, make_case
+from oracle import mp_gap
 
 cases = st.builds(make_case, st.integers(0, 10**6), st.sampled_from(FAMILIES))
 

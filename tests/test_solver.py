@@ -19,7 +19,7 @@ from bullet_boxccd import (
     time_of_impact_batch,
 )
 from bullet_boxccd.motion import rotation_matrix
-from tests.cases import FAMILIES, make_case
+from cases import FAMILIES, make_case
 
 CUBE = Box.centered((0.5, 0.5, 0.5))
 STATIC = QuadraticMotion.static()

@@ -18,8 +18,8 @@ import numpy as np
 import pytest
 
 from bullet_boxccd import Box, QuadraticMotion, time_of_impact
-from tests.cases import FAMILIES, make_case
-from tests.oracle import mp_gap, reference
+from cases import FAMILIES, make_case
+from oracle import mp_gap, reference
 
 N_PER_FAMILY = 200
 TIME_TOL = 1e-9  # of the range
@@ -76,7 +76,7 @@ def test_contact_point_and_normal_are_consistent_with_the_oracle():
         if got is None or got.initial:
             continue
         L = case.size()
-        from tests.oracle import world_vertices
+        from oracle import world_vertices
         for coeffs, lo, hi in ((case.coeffs_a, case.lo_a, case.hi_a), (case.coeffs_b, case.lo_b, case.hi_b)):
             M = coeffs[0] + got.t * (coeffs[1] + got.t * coeffs[2])
             p_local = np.linalg.solve(M[:3, :3], got.point - M[:3, 3])

@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "box_ccd.hpp"
+#include "step_path.hpp"
 
 namespace nb = nanobind;
 using namespace boxccd;
@@ -177,6 +178,20 @@ nb::tuple planes(const BoxData &a, const MotionData &m_a, const BoxData &b, cons
                           nb::ndarray<nb::numpy, double, nb::shape<30>>(off, {30}, own_o), features);
 }
 
+using PathBoxes = In<2, kPathBoxSize>;
+
+nb::ndarray<nb::numpy, double, nb::shape<-1>> py_path_depth(const PathBoxes &boxes, const In<-1> &taus) {
+    const size_t n = taus.shape(0);
+    double *out = new double[n];
+    nb::capsule owner(out, [](void *q) noexcept { delete[] static_cast<double *>(q); });
+    for (size_t i = 0; i < n; ++i) out[i] = path_depth(boxes.data(), boxes.data() + kPathBoxSize, taus.data()[i]);
+    return nb::ndarray<nb::numpy, double, nb::shape<-1>>(out, {n}, owner);
+}
+
+double py_first_depth(const PathBoxes &boxes, double tau_from, double target) {
+    return first_depth(boxes.data(), boxes.data() + kPathBoxSize, tau_from, target);
+}
+
 }  // namespace
 
 NB_MODULE(_core, m) {
@@ -221,4 +236,6 @@ NB_MODULE(_core, m) {
     m.def("solve_batch", &solve_batch);
     m.def("sections", &sections);
     m.def("planes", &planes);
+    m.def("path_depth", &py_path_depth, nb::arg("boxes"), nb::arg("taus"));
+    m.def("first_depth", &py_first_depth, nb::arg("boxes"), nb::arg("tau_from"), nb::arg("target"));
 }
