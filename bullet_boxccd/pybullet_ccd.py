@@ -59,7 +59,9 @@ class CCDEvent:
     from box A towards box B) are world coordinates at the first touch;
     ``feature`` names the BMS plane; ``rewound`` says whether the free bodies of
     the pair were put back at the contact (False for a graze shallower than the
-    rewind depth, or when neither body can be rewound).
+    rewind depth, or when neither body can be rewound); ``initial`` marks a pair
+    that already touched when the step began and pressed deeper during it (its
+    rewind allows an overlap of up to a quarter of the thinner box).
     """
 
     body_a: int
@@ -72,6 +74,7 @@ class CCDEvent:
     normal: np.ndarray
     feature: Feature
     rewound: bool
+    initial: bool
 
 
 @dataclass
@@ -417,7 +420,7 @@ class BoxCCD:
             if rewound and tau == 0.0 and tau_b < self.hold_fraction:
                 self._release_held(path, fa, fb, c.normal, v_new)
             events.append(CCDEvent(int(fr.body[fa]), int(fr.link[fa]), int(fr.body[fb]), int(fr.link[fb]),
-                                   c.t, c.t * dt, c.point, c.normal, c.feature, rewound))
+                                   c.t, c.t * dt, c.point, c.normal, c.feature, rewound, tau == 0.0))
         st.contacts += len(events)
         if stop:
             frames = np.array(sorted(stop))

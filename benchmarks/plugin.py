@@ -1,0 +1,298 @@
+"""Benchmark of the BoxCCD pybullet plugin against plain pybullet, substepping and native CCD.
+
+What it measures
+----------------
+Scenes of N = 10, 100 and 1000 dynamic boxes (all 0.1 m cubes, mass 1): a resting
+pile of N - 4 boxes (a grid of up to 5 layers on the ground, settled by 200 plain
+steps before anything is timed) plus 4 projectiles, over a static ground (a box
+2 cm thick, top face at z = 0) and a static thin wall (1 cm thick, the plane x = 0,
+y in [-1, 1], z in [0, 1.5]). The pile stands away from the projectiles' paths.
+Per trial (numpy ``Generator`` seeded with ``--seed + trial``):
+
+* 2 projectiles are fired at the wall (speed U(50, 150) m/s, direction within 20
+  degrees of +x, aim point y in [-0.7, 0.7], z in [0.3, 1.2], reached at a seeded
+  step 8..60 of the window, gravity compensated; a shot that would start below the
+  ground comes down at the wall instead),
+* 2 projectiles are fired down at the ground (speed U(50, 150) m/s, within 30
+  degrees of vertical, aim point in the empty region x in [-4, -1], y in [-3, -1]),
+
+all with a random spin (each component U(-20, 20) rad/s), and a window of
+``--window`` steps (default 120, 1/240 s each, i.e. 0.5 s) is timed step by step.
+A projectile has tunneled if at the end of the window its centre is below the
+ground's top face (z < 0) or beyond the wall's mid-plane (x > 0); ``tunneled/shots``
+counts projectiles over all trials. Every method sees the same settled pile
+(``p.saveState``/``p.restoreState``) and the same projectiles.
+
+Methods (``fixedTimeStep`` 1/240 s per step throughout):
+
+* ``plain``: ``p.stepSimulation()`` (multibody bodies, ``numSubSteps`` 0),
+* ``plugin``: ``BoxCCD(cid).step()`` on the same world,
+* ``substeps k`` (k = 2, 4, 8, 16): ``p.setPhysicsEngineParameter(numSubSteps=k)``,
+  so one step is k solver steps of 1/(240 k) s,
+* ``plain (maximal)``: the same scene built with ``useMaximalCoordinates=True``
+  (btRigidBody instead of btMultiBody), ``p.stepSimulation()``: the baseline of
+* ``native CCD (maximal)``: that scene with Bullet's own CCD on the projectiles,
+  ``changeDynamics(ccdSweptSphereRadius=0.025)`` (half the projectile's smallest half
+  extent) and ``contactProcessingThreshold=0``.
+
+Multibody velocities are unclamped (``maxJointVelocity=10000``); no damping.
+``us/step`` is, per trial, the mean wall time of a step over the window (it includes
+the impact steps), then the median over trials (``min`` also in the CSV); ``ratio``
+is to ``plain`` of the same N. For the plugin the per-phase seconds of
+``ccd.stats.seconds`` (pybullet's step, reading the state, broad phase, solver,
+rewind) and its counters (swept boxes, candidate pairs, solver rows, contacts,
+rewinds, held) are printed per N, summed over the trials and per step.
+
+Targets printed beside the results: plugin overhead at most 30 % of a plain step at
+N = 100, and the plugin at zero tunneling cheaper than the cheapest substep count
+that also reaches zero tunneling.
+
+Run
+---
+    cd /work/main && PYTHONPATH=/work/main python3 benchmarks/plugin.py            # < 5 min
+    cd /work/main && PYTHONPATH=/work/main python3 benchmarks/plugin.py --quick    # < 1 min
+
+Options: ``--seed`` (default 2024), ``--trials`` (per N for 10 and 100 boxes; 1000
+boxes gets a third of them, at least 1), ``--window``, ``--sizes``, ``--csv``.
+The table is markdown and is also written to ``benchmarks/results/plugin.csv``.
+The machine has other load at times: the medians over trials are what to read.
+This is a benchmark, not a test: it asserts nothing about timings.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import math
+import os
+import platform
+import statistics
+import time
+
+import numpy as np
+import pybullet as p
+from tqdm import tqdm
+
+from bullet_boxccd import BoxCCD
+
+DT = 1.0 / 240.0
+HALF = 0.05  # half extent of every dynamic cube
+G = 9.81
+N_PROJ = 4
+WALL_HALF = (0.005, 1.0, 0.75)  # 1 cm thick, wall plane x = 0
+GROUND_HALF = (60.0, 60.0, 0.01)  # 2 cm thick, top at z = 0
+SUBSTEPS = (2, 4, 8, 16)
+NATIVE_RADIUS = 0.5 * HALF
+PHASES = ("step", "state", "broad_phase", "solve", "rewind")
+
+
+# ------------------------------------------------------------------ scene
+def _box(cid, half, pos, mass, maximal):
+    col = p.createCollisionShape(p.GEOM_BOX, halfExtents=half, physicsClientId=cid)
+    b = p.createMultiBody(mass, col, -1, basePosition=pos, useMaximalCoordinates=maximal, physicsClientId=cid)
+    if mass > 0:
+        p.changeDynamics(b, -1, linearDamping=0.0, angularDamping=0.0, maxJointVelocity=10000.0,
+                         physicsClientId=cid)
+    return b
+
+
+def build(n_boxes, maximal, settle_steps=200):
+    """A settled scene; returns (cid, state id, projectile ids, pile ids)."""
+    cid = p.connect(p.DIRECT)
+    p.setGravity(0, 0, -G, physicsClientId=cid)
+    p.setPhysicsEngineParameter(fixedTimeStep=DT, numSubSteps=0, physicsClientId=cid)
+    _box(cid, GROUND_HALF, (0, 0, -GROUND_HALF[2]), 0.0, maximal)
+    _box(cid, WALL_HALF, (0, 0, WALL_HALF[2]), 0.0, maximal)
+    n_pile = n_boxes - N_PROJ
+    layers = min(5, n_pile)
+    per_layer = math.ceil(n_pile / layers)
+    side = math.ceil(math.sqrt(per_layer))
+    pitch = 2 * HALF + 0.002
+    pile = []
+    for i in range(n_pile):
+        layer, r = divmod(i, per_layer)
+        ix, iy = divmod(r, side)
+        pile.append(_box(cid, [HALF] * 3, (-2.0 - ix * pitch, 2.0 + iy * pitch, HALF + layer * (2 * HALF + 1e-4)),
+                         1.0, maximal))
+    for _ in range(settle_steps):
+        p.stepSimulation(physicsClientId=cid)
+    # Projectiles parked high above the far corner (repositioned at every trial).
+    proj = [_box(cid, [HALF] * 3, (40.0 + 2 * k, 40.0, 30.0), 1.0, maximal) for k in range(N_PROJ)]
+    return cid, p.saveState(physicsClientId=cid), proj, pile
+
+
+def shots(seed):
+    """Seeded start poses and velocities of the projectiles: list of (pos, quat, v, w, kind)."""
+    rng = np.random.default_rng(seed)
+    out = []
+    for k in range(N_PROJ):
+        speed = rng.uniform(50.0, 150.0)
+        t_hit = rng.integers(8, 61) * DT + rng.uniform(0, DT)
+        if k < 2:  # at the wall, from the -x side
+            aim = np.array([-WALL_HALF[0] - HALF, rng.uniform(-0.7, 0.7), rng.uniform(0.3, 1.2)])
+            theta, phi = np.radians(rng.uniform(0, 20)), rng.uniform(0, 2 * np.pi)
+            d = np.array([np.cos(theta), np.sin(theta) * np.cos(phi), np.sin(theta) * np.sin(phi)])
+            kind = "wall"
+            if aim[2] - speed * d[2] * t_hit + 0.5 * G * t_hit**2 < 0.3:
+                d[2] = -d[2]  # it would start under the ground: come down onto the wall instead
+        else:  # down at the empty ground
+            aim = np.array([rng.uniform(-4.0, -1.0), rng.uniform(-3.0, -1.0), HALF])
+            theta, phi = np.radians(rng.uniform(0, 30)), rng.uniform(0, 2 * np.pi)
+            d = np.array([np.sin(theta) * np.cos(phi), np.sin(theta) * np.sin(phi), -np.cos(theta)])
+            kind = "ground"
+        v = speed * d
+        pos = aim - v * t_hit + np.array([0, 0, 0.5 * G * t_hit**2])
+        q = rng.normal(size=4)
+        q /= np.linalg.norm(q)
+        w = rng.uniform(-20.0, 20.0, 3)
+        out.append((pos, q, v, w, kind))
+    return out
+
+
+# ------------------------------------------------------------------ runs
+def run_method(world, method, seeds, window, bar):
+    """Returns (per-trial us/step list, tunneled count, plugin stats or None, tunnel details)."""
+    cid, state, proj, _ = world
+    ccd = None
+    us, n_tunnel, details = [], 0, []
+    for seed in seeds:
+        p.restoreState(state, physicsClientId=cid)
+        k = int(method.split()[1]) if method.startswith("substeps") else 0
+        p.setPhysicsEngineParameter(fixedTimeStep=DT, numSubSteps=k, physicsClientId=cid)
+        for b, (pos, q, v, w, _) in zip(proj, shots(seed)):
+            p.resetBasePositionAndOrientation(b, pos.tolist(), q.tolist(), physicsClientId=cid)
+            p.resetBaseVelocity(b, v.tolist(), w.tolist(), physicsClientId=cid)
+            if method.startswith("native"):
+                p.changeDynamics(b, -1, ccdSweptSphereRadius=NATIVE_RADIUS, contactProcessingThreshold=0.0,
+                                 physicsClientId=cid)
+        if method == "plugin":
+            if ccd is None:
+                ccd = BoxCCD(cid)
+            step = ccd.step
+        else:
+            def step():
+                p.stepSimulation(physicsClientId=cid)
+        total = 0.0
+        for _ in range(window):
+            t0 = time.perf_counter()
+            step()
+            total += time.perf_counter() - t0
+        us.append(1e6 * total / window)
+        for i, b in enumerate(proj):
+            x, y, z = p.getBasePositionAndOrientation(b, physicsClientId=cid)[0]
+            if z < 0.0 or x > 0.0:
+                n_tunnel += 1
+                details.append((seed, i, shots(seed)[i][4], (x, y, z)))
+        bar.update(1)
+    return us, n_tunnel, (ccd.stats if ccd else None), details
+
+
+def print_table(title, header, rows):
+    widths = [max(len(str(x)) for x in col) for col in zip(header, *rows)]
+    print(f"\n{title}")
+    print("| " + " | ".join(str(h).ljust(w) for h, w in zip(header, widths)) + " |")
+    print("|" + "|".join("-" * (w + 2) for w in widths) + "|")
+    for r in rows:
+        print("| " + " | ".join(str(x).ljust(w) for x, w in zip(r, widths)) + " |")
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--quick", action="store_true", help="fewer trials and a shorter window (< 1 min)")
+    ap.add_argument("--seed", type=int, default=2024)
+    ap.add_argument("--trials", type=int, default=None, help="trials per N (default 6; 2 with --quick)")
+    ap.add_argument("--window", type=int, default=None, help="timed steps per trial (default 120; 80 with --quick)")
+    ap.add_argument("--sizes", type=int, nargs="+", default=[10, 100, 1000])
+    ap.add_argument("--csv", default=os.path.join(os.path.dirname(os.path.abspath(__file__)), "results", "plugin.csv"))
+    args = ap.parse_args(argv)
+    trials = args.trials or (2 if args.quick else 6)
+    window = args.window or (80 if args.quick else 120)
+    methods = ["plain", "plugin"] + [f"substeps {k}" for k in SUBSTEPS] + ["plain (maximal)", "native CCD (maximal)"]
+
+    print(f"machine: {platform.platform()}, {platform.processor() or platform.machine()}, "
+          f"python {platform.python_version()}, pybullet API {p.getAPIVersion()}, numpy {np.__version__}")
+    print(f"seed {args.seed}, window {window} steps of 1/240 s, {N_PROJ} projectiles per trial")
+
+    n_trials = {n: (trials if n <= 100 else max(1, trials // 3)) for n in args.sizes}
+    bar = tqdm(total=sum(n_trials[n] * len(methods) for n in args.sizes), desc="runs", unit="trial")
+    results, phase_rows, tunnel_log = [], [], []
+    for n in args.sizes:
+        seeds = [args.seed + t for t in range(n_trials[n])]
+        worlds = {False: build(n, False), True: build(n, True)}
+        res = {}
+        for m in methods:
+            us, nt, stats, det = run_method(worlds["maximal" in m], m, seeds, window, bar)
+            res[m] = (us, nt, stats)
+            tunnel_log += [(n, m) + d for d in det]
+        for w in worlds.values():
+            p.disconnect(w[0])
+        plain = statistics.median(res["plain"][0])
+        for m in methods:
+            us, nt, stats = res[m]
+            med = statistics.median(us)
+            row = dict(n_boxes=n, method=m, us_per_step_median=round(med, 1), us_per_step_min=round(min(us), 1),
+                       ratio_to_plain=round(med / plain, 3), tunneled=nt, shots=N_PROJ * len(seeds),
+                       trials=len(seeds), window_steps=window)
+            if stats is not None:
+                steps = max(stats.steps, 1)
+                for ph in PHASES:
+                    row[f"plugin_{ph}_us_per_step"] = round(1e6 * stats.seconds[ph] / steps, 1)
+                for c in ("swept_boxes", "candidate_pairs", "solver_rows", "contacts", "rewinds", "held"):
+                    row[f"plugin_{c}"] = getattr(stats, c)
+                phase_rows.append((n, steps, stats))
+            results.append(row)
+    bar.close()
+
+    rows = [(r["n_boxes"], r["method"], f"{r['us_per_step_median']:.0f}", f"{r['ratio_to_plain']:.2f}",
+             f"{r['tunneled']}/{r['shots']}") for r in results]
+    print_table("time per step and tunneling (us/step: median over trials of the mean over the window)",
+                ("boxes", "method", "us/step", "x plain", "tunneled/shots"), rows)
+
+    prow = []
+    for n, steps, st in phase_rows:
+        per = {ph: 1e6 * st.seconds[ph] / steps for ph in PHASES}
+        sweep = sum(per[ph] for ph in PHASES[1:])
+        prow.append((n, steps, *(f"{per[ph]:.0f}" for ph in PHASES), f"{sweep:.0f}", st.swept_boxes,
+                     st.candidate_pairs, st.solver_rows, st.contacts, st.rewinds, st.held))
+    print_table("plugin phases (us per step, mean over all trials) and counters (totals over all trials)",
+                ("boxes", "steps", "pybullet step", "state", "broad", "solve", "rewind", "sweep total",
+                 "swept", "pairs", "rows", "contacts", "rewinds", "held"), prow)
+
+    print("\ntargets")
+    by = {(r["n_boxes"], r["method"]): r for r in results}
+    if (100, "plain") in by:
+        ov = by[(100, "plugin")]["us_per_step_median"] / by[(100, "plain")]["us_per_step_median"] - 1.0
+        print(f"  plugin overhead at 100 boxes: {100 * ov:.0f} % of a plain step (target <= 30 %): "
+              f"{'met' if ov <= 0.30 else 'NOT met'}")
+    for n in args.sizes:
+        plug = by[(n, "plugin")]
+        zero = [by[(n, f"substeps {k}")] for k in SUBSTEPS if by[(n, f"substeps {k}")]["tunneled"] == 0]
+        if plug["tunneled"]:
+            verdict = f"plugin tunneled {plug['tunneled']}/{plug['shots']}: NOT met"
+        elif not zero:
+            verdict = (f"plugin {plug['us_per_step_median']:.0f} us at zero tunneling; no substep count up to "
+                       f"{SUBSTEPS[-1]} reaches zero: met")
+        else:
+            best = min(zero, key=lambda r: r["us_per_step_median"])
+            ok = plug["us_per_step_median"] < best["us_per_step_median"]
+            verdict = (f"plugin {plug['us_per_step_median']:.0f} us vs cheapest zero-tunneling {best['method']} "
+                       f"{best['us_per_step_median']:.0f} us: {'met' if ok else 'NOT met'}")
+        print(f"  {n} boxes, plugin at zero tunneling cheaper than substepping at zero: {verdict}")
+
+    if tunnel_log:
+        print("\ntunneled projectiles (boxes, method, seed, projectile, aimed at, final centre)")
+        for n, m, seed, i, kind, pos in tunnel_log:
+            if m in ("plugin", "native CCD (maximal)") or m.startswith("substeps"):
+                print(f"  {n}, {m}, seed {seed}, #{i}, {kind}, ({pos[0]:.3f}, {pos[1]:.3f}, {pos[2]:.3f})")
+
+    os.makedirs(os.path.dirname(os.path.abspath(args.csv)), exist_ok=True)
+    keys = list(dict.fromkeys(k for r in results for k in r))
+    with open(args.csv, "w", newline="") as f:
+        wr = csv.DictWriter(f, fieldnames=keys)
+        wr.writeheader()
+        wr.writerows(results)
+    print(f"\nwritten: {args.csv}")
+
+
+if __name__ == "__main__":
+    main()

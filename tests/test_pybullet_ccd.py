@@ -1,0 +1,347 @@
+"""BoxCCD against pybullet itself: tunneling, rotation, momentum, contact poses by
+pybullet's own getClosestPoints, energy, do-no-harm, frames, URDFs, filters."""
+
+from __future__ import annotations
+
+import os
+
+import numpy as np
+import pybullet as p
+import pybullet_data
+import pytest
+
+from bullet_boxccd import BoxCCD
+from bullet_boxccd.motion import StepPath, quat_to_matrix
+
+DT = 1 / 240
+
+
+@pytest.fixture(scope="module")
+def cid():
+    c = p.connect(p.DIRECT)
+    yield c
+    p.disconnect(c)
+
+
+def reset(cid, gravity=0.0):
+    p.resetSimulation(physicsClientId=cid)
+    p.setTimeStep(DT, physicsClientId=cid)
+    p.setGravity(0, 0, gravity, physicsClientId=cid)
+
+
+def box(cid, half, pos, mass=1.0, orn=(0, 0, 0, 1), frame_pos=(0, 0, 0), frame_orn=(0, 0, 0, 1),
+        inertial_pos=(0, 0, 0), maximal=False, **dyn):
+    col = p.createCollisionShape(p.GEOM_BOX, halfExtents=half, collisionFramePosition=frame_pos,
+                                 collisionFrameOrientation=frame_orn, physicsClientId=cid)
+    b = p.createMultiBody(mass, col, basePosition=pos, baseOrientation=orn, baseInertialFramePosition=inertial_pos,
+                          useMaximalCoordinates=maximal, physicsClientId=cid)
+    p.changeDynamics(b, -1, linearDamping=0, angularDamping=0, maxJointVelocity=10000, physicsClientId=cid, **dyn)
+    return b
+
+
+def com_x(cid, b):
+    return p.getBasePositionAndOrientation(b, physicsClientId=cid)[0][0]
+
+
+def closest(cid, ev):
+    pts = p.getClosestPoints(ev.body_a, ev.body_b, 0.01, ev.link_a, ev.link_b, physicsClientId=cid)
+    return min(c[8] for c in pts) if pts else np.inf
+
+
+def check_rewound_poses(cid, events, margin=0.001):
+    """Test 4: a first-touch rewind leaves the pair touching by pybullet's own measure:
+    0 to 1e-6 m deep at a face, up to the margin's rounding apart at a vertex or edge."""
+    n = 0
+    for ev in events:
+        if ev.rewound and not ev.initial:
+            d = closest(cid, ev)
+            assert -1e-6 <= d <= margin + 1e-6, (ev, d)
+            n += 1
+    return n
+
+
+# ------------------------------------------------------------------ the path
+def test_step_path_reproduces_bullets_integration(cid):
+    """The path rebuilt from the pose after a step lands on the pose before it, for
+    spins below and far above Bullet's pi/4-per-step clamp."""
+    reset(cid)
+    b = box(cid, [0.05, 0.1, 0.2], [0, 0, 1])
+    for w in ([0, 0, 5], [30, 40, 100], [300, 0, 0], [-500, 800, 200]):
+        p.resetBasePositionAndOrientation(b, [0.1, 0.2, 1], p.getQuaternionFromEuler([0.3, 0.2, 0.1]),
+                                          physicsClientId=cid)
+        p.resetBaseVelocity(b, [3, -2, 1], w, physicsClientId=cid)
+        pos0, q0 = p.getBasePositionAndOrientation(b, physicsClientId=cid)
+        p.stepSimulation(physicsClientId=cid)
+        pos1, q1 = p.getBasePositionAndOrientation(b, physicsClientId=cid)
+        v1, w1 = p.getBaseVelocity(b, physicsClientId=cid)
+        X1 = np.eye(4)
+        X1[:3, :3], X1[:3, 3] = quat_to_matrix(q1), pos1
+        X0 = StepPath(X1[None], np.array([v1]), np.array([w1]), DT).at(0.0)[0]
+        np.testing.assert_allclose(X0[:3, 3], pos0, atol=1e-12)
+        np.testing.assert_allclose(X0[:3, :3], quat_to_matrix(q0), atol=1e-9)
+
+
+# ------------------------------------------------------------- 1. thin walls
+def thin_wall_run(cid, use, speed, thickness, phase, spin, orn, cube_kw=None, register=None):
+    reset(cid)
+    box(cid, [thickness / 2, 1, 1], [0, 0, 0], mass=0.0)
+    cube = box(cid, [0.05] * 3, [-0.3 - phase * speed * DT, 0.1, 0.05], orn=orn, **(cube_kw or {}))
+    p.resetBaseVelocity(cube, [speed, 0, 0], spin, physicsClientId=cid)
+    ccd = BoxCCD(cid) if use else None
+    if ccd is not None and register:
+        register(ccd, cube)
+    if ccd is not None:
+        assert ccd.stats.tracked_boxes == 2
+    events, checked = [], 0
+    for _ in range(int(0.6 / (speed * DT)) + 30):
+        if ccd is None:
+            p.stepSimulation(physicsClientId=cid)
+        else:
+            evs = ccd.step()
+            checked += check_rewound_poses(cid, evs)
+            events += evs
+    return com_x(cid, cube) > 0.0, events, checked
+
+
+def phases(n=50, seed=0):
+    rng = np.random.default_rng(seed)
+    for k in range(n):
+        yield k / n, rng.uniform(-30, 30, 3), p.getQuaternionFromEuler(rng.uniform(-0.3, 0.3, 3))
+
+
+@pytest.mark.parametrize("thickness", [0.01, 0.001])
+@pytest.mark.parametrize("speed", [10.0, 100.0, 1000.0])
+def test_thin_wall_never_tunnels(cid, speed, thickness):
+    plain = ccd_through = checked = 0
+    for phase, spin, orn in phases():
+        plain += thin_wall_run(cid, False, speed, thickness, phase, spin, orn)[0]
+        through, _, n = thin_wall_run(cid, True, speed, thickness, phase, spin, orn)
+        ccd_through += through
+        checked += n
+    assert ccd_through == 0
+    assert checked >= 50  # test 4 ran on every first impact
+    if speed >= 100:  # at 10 m/s the cube moves 4 cm a step: plain pybullet catches it too
+        assert plain >= 25, f"plain pybullet tunneled only {plain}/50: the test shows nothing"
+
+
+# --------------------------------------------------------------- 2. rotation
+@pytest.mark.parametrize("radius", [0.3, 0.45])
+def test_spinning_plank_never_passes_through(cid, radius):
+    plain = through = 0
+    for k in range(40):
+        for use in (False, True):
+            reset(cid)
+            box(cid, [0.05] * 3, [radius, 0, 0], mass=0.0)
+            plank = box(cid, [0.5, 0.01, 0.1], [0, 0, 0], orn=p.getQuaternionFromEuler([0, 0, np.pi / 2 + k / 40 * 0.83]))
+            p.resetBaseVelocity(plank, [0, 0, 0], [0, 0, -200.0], physicsClientId=cid)
+            ccd = BoxCCD(cid) if use else None
+            for _ in range(8):
+                ccd.step() if ccd else p.stepSimulation(physicsClientId=cid)
+            untouched = abs(p.getBaseVelocity(plank, physicsClientId=cid)[1][2] + 200.0) < 1e-6
+            if use:
+                through += untouched
+            else:
+                plain += untouched
+    assert through == 0
+    assert plain > 5
+
+
+# -------------------------------------------------- 3. two fast boxes, momentum
+@pytest.mark.parametrize("angle_deg", [0.0, 35.0])
+def test_two_fast_boxes_collide_and_conserve_momentum(cid, angle_deg):
+    d = np.array([np.cos(np.radians(angle_deg)), np.sin(np.radians(angle_deg)), 0.0])
+    for k in range(20):
+        reset(cid)
+        gap = 1.0 + k / 20 * 400 * DT
+        a = box(cid, [0.05] * 3, [-gap / 2, 0.0, 0.0], restitution=1.0)
+        b = box(cid, [0.06, 0.04, 0.05], (gap / 2 * d).tolist(), mass=2.5, restitution=1.0,
+                orn=p.getQuaternionFromEuler([0.1 * k, 0.2, 0.0]))
+        p.resetBaseVelocity(a, [200, 0, 0], [0, 5, 0], physicsClientId=cid)
+        p.resetBaseVelocity(b, (-200 * d).tolist(), [3, 0, 0], physicsClientId=cid)
+        m0 = np.array([200.0, 0, 0]) + 2.5 * (-200 * d)
+        ccd = BoxCCD(cid)
+        events = []
+        for _ in range(int(gap / 400 / DT) + 8):
+            evs = ccd.step()
+            check_rewound_poses(cid, evs)
+            events += evs
+        va = np.array(p.getBaseVelocity(a, physicsClientId=cid)[0])
+        vb = np.array(p.getBaseVelocity(b, physicsClientId=cid)[0])
+        assert events, "no CCD contact"
+        assert not np.allclose(va, [200, 0, 0]), "the boxes passed through each other"
+        assert np.linalg.norm(va + 2.5 * vb - m0) <= 0.01 * np.linalg.norm(m0), (k, va, vb)
+
+
+# ---------------------------------------------------------------- 5. energy
+def test_restitution_one_keeps_the_speed(cid):
+    for phase in np.linspace(0, 1, 10, endpoint=False):
+        reset(cid)
+        box(cid, [0.005, 1, 1], [0, 0, 0], mass=0.0, restitution=1.0)
+        cube = box(cid, [0.05] * 3, [-0.3 - phase * 50 * DT, 0.0, 0.0], restitution=1.0)
+        p.resetBaseVelocity(cube, [50, 0, 0], [0, 0, 0], physicsClientId=cid)
+        ccd = BoxCCD(cid)
+        for _ in range(40):
+            ccd.step()
+        v = p.getBaseVelocity(cube, physicsClientId=cid)[0]
+        assert ccd.stats.rewinds >= 1
+        assert abs(v[0] + 50.0) <= 1.0, v  # back at 50 m/s within 2%
+
+
+# ---------------------------------------------------------- 6. do no harm
+def run_quiet_scene(cid, use):
+    reset(cid, gravity=-9.81)
+    box(cid, [2, 2, 0.05], [0, 0, -0.05], mass=0.0)
+    stack = [box(cid, [0.1, 0.1, 0.05], [0, 0, 0.05 + 0.1 * i]) for i in range(10)]
+    slider = box(cid, [0.1, 0.1, 0.1], [1.0, 0, 0.1])
+    p.resetBaseVelocity(slider, [0.5, 0, 0], [0, 0, 0], physicsClientId=cid)
+    ccd = BoxCCD(cid) if use else None
+    traj = []
+    for _ in range(1000):
+        ccd.step() if ccd else p.stepSimulation(physicsClientId=cid)
+        traj.append([p.getBasePositionAndOrientation(b, physicsClientId=cid)[0] for b in stack + [slider]])
+    return np.array(traj), ccd
+
+
+def test_resting_stack_and_slow_slider_are_untouched(cid):
+    plain, _ = run_quiet_scene(cid, False)
+    with_ccd, ccd = run_quiet_scene(cid, True)
+    assert np.abs(plain - with_ccd).max() <= 1e-9
+    assert ccd.stats.rewinds == 0 and ccd.stats.tracked_boxes == 12
+
+
+# ------------------------------------------------------------------ 7. frames
+def _register_maximal(ccd, cube):
+    ccd.register_box(cube, -1, [0.05] * 3)
+
+
+FRAME_CASES = {
+    "collision frame offset": dict(frame_pos=(0.02, -0.01, 0.03), frame_orn=p.getQuaternionFromEuler([0.2, 0.1, 0.3])),
+    "inertial frame offset": dict(inertial_pos=(0.03, 0.01, -0.02)),
+    "both offsets": dict(frame_pos=(0.01, 0.02, 0.0), inertial_pos=(-0.02, 0.0, 0.01)),
+}
+
+
+@pytest.mark.parametrize("name", sorted(FRAME_CASES))
+def test_frames_thin_wall(cid, name):
+    for phase, spin, orn in phases(12, seed=3):
+        through, events, checked = thin_wall_run(cid, True, 100.0, 0.001, phase, spin, orn, FRAME_CASES[name])
+        assert not through and checked >= 1
+
+
+def test_maximal_coordinates_with_registered_box(cid):
+    plain = 0
+    for phase, spin, orn in phases(12, seed=4):
+        kw = dict(maximal=True)
+        plain += thin_wall_run(cid, False, 100.0, 0.001, phase, spin, orn, kw)[0]
+        through, events, checked = thin_wall_run(cid, True, 100.0, 0.001, phase, spin, orn, kw, _register_maximal)
+        assert not through and checked >= 1
+    assert plain > 0
+
+
+def test_compound_link_of_several_boxes(cid):
+    """A dumbbell: two cubes and a bar on one link, with frame offsets, at 100 m/s."""
+    for phase, spin, orn in phases(12, seed=5):
+        reset(cid)
+        box(cid, [0.0005, 1, 1], [0, 0, 0], mass=0.0)
+        col = p.createCollisionShapeArray([p.GEOM_BOX] * 3, halfExtents=[[0.04] * 3, [0.04] * 3, [0.1, 0.01, 0.01]],
+                                          collisionFramePositions=[[-0.12, 0, 0], [0.12, 0, 0], [0, 0, 0]],
+                                          physicsClientId=cid)
+        b = p.createMultiBody(1.0, col, basePosition=[-0.5 - phase * 100 * DT, 0.1, 0.0], baseOrientation=orn,
+                              physicsClientId=cid)
+        p.changeDynamics(b, -1, maxJointVelocity=10000, linearDamping=0, angularDamping=0, physicsClientId=cid)
+        p.resetBaseVelocity(b, [100, 0, 0], spin, physicsClientId=cid)
+        ccd = BoxCCD(cid)
+        assert ccd.stats.tracked_boxes == 4
+        for _ in range(40):
+            check_rewound_poses(cid, ccd.step())
+        assert com_x(cid, b) < 0.0
+
+
+# --------------------------------------------------------------------- 8. URDFs
+def test_urdf_pieces_stay_in_the_tray(cid):
+    data = pybullet_data.getDataPath()
+    plain = escaped = 0
+    for seed in range(2):
+        for use in (False, True):
+            reset(cid, gravity=-9.81)
+            p.loadURDF(os.path.join(data, "tray/traybox.urdf"), physicsClientId=cid)
+            box(cid, [0.36, 0.36, 0.01], [0, 0, 0.13], mass=0.0)  # a lid closes the tray
+            rng = np.random.default_rng(seed)
+            pieces = []
+            for k in range(9):
+                pos = [-0.15 + 0.15 * (k % 3), -0.15 + 0.15 * (k // 3), 0.07]
+                b = p.loadURDF(os.path.join(data, ("lego/lego.urdf", "jenga/jenga.urdf")[k % 2]), pos,
+                               physicsClientId=cid)
+                p.changeDynamics(b, -1, maxJointVelocity=10000, physicsClientId=cid)
+                p.resetBaseVelocity(b, [rng.uniform(-40, 40), rng.uniform(-40, 40), rng.uniform(-80, 80)],
+                                    rng.uniform(-30, 30, 3).tolist(), physicsClientId=cid)
+                pieces.append(b)
+            ccd = BoxCCD(cid) if use else None
+            if ccd:
+                assert ccd.stats.tracked_boxes == 5 + 1 + 9
+            for _ in range(120):
+                ccd.step() if ccd else p.stepSimulation(physicsClientId=cid)
+            out = 0
+            for b in pieces:
+                x, y, z = p.getBasePositionAndOrientation(b, physicsClientId=cid)[0]
+                out += not (abs(x) < 0.36 and abs(y) < 0.36 and -0.01 < z < 0.14)
+            if use:
+                escaped += out
+            else:
+                plain += out
+    assert escaped == 0
+    assert plain > 0
+
+
+# ---------------------------------------------------- discovery and filtering
+def test_discovery_lists_what_is_left_to_pybullet(cid):
+    reset(cid)
+    box(cid, [0.1] * 3, [0, 0, 0])
+    s = p.createCollisionShape(p.GEOM_SPHERE, radius=0.1, physicsClientId=cid)
+    p.createMultiBody(1.0, s, basePosition=[1, 0, 0], physicsClientId=cid)
+    m = box(cid, [0.1] * 3, [2, 0, 0], maximal=True)
+    ccd = BoxCCD(cid)
+    text = ccd.summary()
+    assert ccd.stats.tracked_boxes == 1
+    assert "sphere" in text and f"maximal-coordinate body {m}" in text
+    box(cid, [0.1] * 3, [3, 0, 0])  # added later: picked up on the next step
+    ccd.step()
+    assert ccd.stats.tracked_boxes == 2
+
+
+def test_filtered_pair_is_not_swept(cid):
+    reset(cid)
+    wall = box(cid, [0.0005, 1, 1], [0, 0, 0], mass=0.0)
+    cube = box(cid, [0.05] * 3, [-0.3, 0, 0])
+    p.resetBaseVelocity(cube, [100, 0, 0], [0, 0, 0], physicsClientId=cid)
+    ccd = BoxCCD(cid)
+    ccd.set_collision_filter_pair(wall, cube, -1, -1, False)
+    for _ in range(20):
+        assert not ccd.step()
+    assert com_x(cid, cube) > 1.0  # pybullet does not collide them either
+
+
+def test_articulated_link_is_swept_and_its_free_partner_rewound(cid):
+    """A box on a fast revolute link strikes a free cube: the event names the link; the
+    cube, not the arm, is rewound."""
+    reset(cid)
+    arm_col = p.createCollisionShape(p.GEOM_BOX, halfExtents=[0.5, 0.01, 0.05], collisionFramePosition=[0.5, 0, 0],
+                                     physicsClientId=cid)
+    base_col = p.createCollisionShape(p.GEOM_BOX, halfExtents=[0.02] * 3, physicsClientId=cid)
+    arm = p.createMultiBody(0.0, base_col, basePosition=[0, 0, 0], linkMasses=[1.0],
+                            linkCollisionShapeIndices=[arm_col], linkVisualShapeIndices=[-1],
+                            linkPositions=[[0, 0, 0]], linkOrientations=[[0, 0, 0, 1]],
+                            linkInertialFramePositions=[[0.5, 0, 0]], linkInertialFrameOrientations=[[0, 0, 0, 1]],
+                            linkParentIndices=[0], linkJointTypes=[p.JOINT_REVOLUTE], linkJointAxis=[[0, 0, 1]],
+                            physicsClientId=cid)
+    p.changeDynamics(arm, 0, maxJointVelocity=10000, physicsClientId=cid)
+    p.setJointMotorControl2(arm, 0, p.VELOCITY_CONTROL, force=0, physicsClientId=cid)
+    p.resetJointState(arm, 0, 0.0, 150.0, physicsClientId=cid)
+    cube = box(cid, [0.03] * 3, [0.3, 0.35, 0.0])
+    ccd = BoxCCD(cid)
+    events = []
+    for _ in range(6):
+        events += ccd.step()
+    mine = [e for e in events if {e.body_a, e.body_b} == {arm, cube}]
+    assert mine and all((e.link_a if e.body_a == arm else e.link_b) == 0 for e in mine)
+    assert any(e.rewound for e in mine)
