@@ -112,24 +112,26 @@ nb::ndarray<nb::numpy, double, nb::shape<-1>> solve_batch(const Vec3N &lo_a, con
     {
         nb::gil_scoped_release release;
         for (size_t i = 0; i < n; ++i) {
-            const std::string where = "row " + std::to_string(i) + ": ";
             const BoxInput a{lo_a.data() + 3 * i, hi_a.data() + 3 * i, c_a.data() + 48 * i};
             const BoxInput b{lo_b.data() + 3 * i, hi_b.data() + 3 * i, c_b.data() + 48 * i};
             out[i] = std::numeric_limits<double>::quiet_NaN();
+            // Messages get their "row i: " prefix only when a row is bad (no
+            // allocation on the good path).
+            const auto row = [i](const std::exception &e) { return "row " + std::to_string(i) + ": " + e.what(); };
             try {
-                check_box(a.lo, a.hi, "lo_a/hi_a", where);
-                check_box(b.lo, b.hi, "lo_b/hi_b", where);
-                check_motion(a.coeffs, "coeffs_a", where);
-                check_motion(b.coeffs, "coeffs_b", where);
+                check_box(a.lo, a.hi, "lo_a/hi_a", "");
+                check_box(b.lo, b.hi, "lo_b/hi_b", "");
+                check_motion(a.coeffs, "coeffs_a", "");
+                check_motion(b.coeffs, "coeffs_b", "");
                 Problem p(a, b, t0, t1, tol);
-                p.check_regular((where + "coeffs_a").c_str(), (where + "coeffs_b").c_str());
+                p.check_regular("coeffs_a", "coeffs_b");
                 if (!bad.empty()) continue;  // keep collecting bad rows, skip the work
                 const Hit h = p.solve(false);
                 if (h.hit) out[i] = h.t;
-            } catch (const NonFiniteError &e) { row_error(i, 0, e.what()); }
-            catch (const BoxError &e) { row_error(i, 1, e.what()); }
-            catch (const MotionError &e) { row_error(i, 2, e.what()); }
-            catch (const SingularMotionError &e) { row_error(i, 3, e.what(), e.t); }
+            } catch (const NonFiniteError &e) { row_error(i, 0, row(e)); }
+            catch (const BoxError &e) { row_error(i, 1, row(e)); }
+            catch (const MotionError &e) { row_error(i, 2, row(e)); }
+            catch (const SingularMotionError &e) { row_error(i, 3, row(e), e.t); }
         }
     }
     if (!bad.empty()) {

@@ -274,37 +274,35 @@ Problem::Section Problem::make_section(double lo, double hi) const {
     Section sec;
     sec.lo = lo;
     sec.hi = hi;
-    const double mid = 0.5 * (lo + hi);
-    std::array<double, 3> gm[6];
-    double glen[6];
-    for (int g = 0; g < 6; ++g) {
-        gm[g] = g_[g](mid);
-        glen[g] = norm3(gm[g]);
-    }
-    double pv[20];
-    for (int i = 0; i < 20; ++i) pv[i] = proj_[i](mid);
-    for (int ax = 0; ax < 15; ++ax) {
-        for (int g = 0; g < 6; ++g) {
-            const Projection pr = kProjection.p[ax][g];
-            const double v = pr.index >= 0 ? pr.sign * pv[pr.index] : 0.0;
-            // The topology sampled at an interior point holds over the section.
-            sec.sig[ax][g] = static_cast<int8_t>((v > 0.0) - (v < 0.0));
-        }
-        const int g1 = axis_generator(ax, 0), g2 = axis_generator(ax, 1);
-        const std::array<double, 3> &u = gm[g1], &v = gm[g2];
-        const double nn = norm3({u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]});
-        // Parallel edges (or a flat box) give an axis with no direction: it can
-        // rank no contact (its facet has zero area).
-        sec.scale[ax] = nn > 1e-9 * glen[g1] * glen[g2] ? nn : 0.0;
-        sec.tau[ax] = tol_.gap_rel * size_ * nn + noise_[ax];
-    }
     return sec;
+}
+
+// The topology of one axis in a section, sampled at the section's midpoint (it
+// holds over the whole section), with the axis' tolerance and ranking scale.
+// Computed on first use: a section that one facet keeps apart needs one axis.
+void Problem::ensure_axis(const Section &sec, int ax) const {
+    if (sec.ready & (1u << ax)) return;
+    const double mid = 0.5 * (sec.lo + sec.hi);
+    for (int g = 0; g < 6; ++g) {
+        const Projection pr = kProjection.p[ax][g];
+        const double v = pr.index >= 0 ? pr.sign * proj_[pr.index](mid) : 0.0;
+        sec.sig[ax][g] = static_cast<int8_t>((v > 0.0) - (v < 0.0));
+    }
+    const int g1 = axis_generator(ax, 0), g2 = axis_generator(ax, 1);
+    const std::array<double, 3> u = g_[g1](mid), v = g_[g2](mid);
+    const double nn = norm3({u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]});
+    // Parallel edges (or a flat box) give an axis with no direction: it can
+    // rank no contact (its facet has zero area).
+    sec.scale[ax] = nn > 1e-9 * norm3(u) * norm3(v) ? nn : 0.0;
+    sec.tau[ax] = tol_.gap_rel * size_ * nn + noise_[ax];
+    sec.ready |= 1u << ax;
 }
 
 // Q_k = +-n.d - sum_g sig * |n.g| h_g - tau, built on first use.
 const Poly &Problem::facet_poly(const Section &sec, int facet) const {
     if (!(sec.built & (1u << facet))) {
         const int ax = facet / 2;
+        ensure_axis(sec, ax);
         Poly H;
         for (int g = 0; g < 6; ++g) {
             if (!sec.sig[ax][g]) continue;
@@ -324,6 +322,7 @@ void Problem::facet_values(const Section &sec, double s, double *q) const {
     double pv[20];
     for (int i = 0; i < 20; ++i) pv[i] = proj_[i](s);
     for (int ax = 0; ax < 15; ++ax) {
+        ensure_axis(sec, ax);
         double H = 0.0;
         for (int g = 0; g < 6; ++g) {
             if (!sec.sig[ax][g]) continue;
@@ -342,7 +341,17 @@ void Problem::facet_values(const Section &sec, double s, double *q) const {
 // facet stays positive to the section's end. Each jump passes a root of a
 // facet polynomial, so s only increases and no contact is skipped: before
 // that root the facet proves the boxes apart.
-bool Problem::advance(const Section &sec, double &s, int &last) const {
+bool Problem::advance(const Section &sec, double &s, int &last, int &separating) const {
+    // Warm start: the facet that kept the previous section apart often keeps
+    // this one apart too, which the other 29 facets need not be asked about.
+    if (separating >= 0 && facet_poly(sec, separating)(s) > 0.0) {
+        const double r = first_nonpositive(facet_poly(sec, separating), s, sec.hi);
+        if (std::isnan(r)) return false;
+        if (r > s) {
+            s = r;
+            last = separating;
+        }
+    }
     uint32_t touching = 0;  // facets within rounding of zero at this s
     double q[30];
     for (int step = 0; step < tol_.max_steps; ++step) {
@@ -360,7 +369,10 @@ bool Problem::advance(const Section &sec, double &s, int &last) const {
         }
         if (best < 0) return true;
         const double r = first_nonpositive(facet_poly(sec, best), s, sec.hi);
-        if (std::isnan(r)) return false;
+        if (std::isnan(r)) {
+            separating = best;
+            return false;
+        }
         if (r <= s) {  // Horner and Bernstein disagree in the last bits: treat as touching here
             touching |= 1u << best;
             continue;
@@ -441,12 +453,12 @@ Hit Problem::solve(bool want_geometry) const {
     if (apart_on_fixed_axis()) return hit;
     build_facet_terms();
     Switches sw = first_switches();
-    int last = -1;
+    int last = -1, separating = -1;
     for (double lo = 0.0;;) {
         const double hi = sw.boundary();
         const Section sec = make_section(lo, hi);
         double s = lo;
-        if (advance(sec, s, last)) {
+        if (advance(sec, s, last, separating)) {
             hit.hit = true;
             hit.s = s;
             hit.t = s >= 1.0 ? t1 : t0 + s * (t1 - t0);
@@ -471,6 +483,7 @@ static inline int facet_sign(const int8_t sig[6], int facet, int g) {
 
 void Problem::contact_geometry(const Section &sec, Hit &hit) const {
     const int ax = hit.facet / 2;
+    ensure_axis(sec, ax);
     const double s = hit.s;
     std::array<double, 3> n = n_[ax](s), cA = cA_(s), cB = cB_(s);
     std::array<double, 3> gv[6];

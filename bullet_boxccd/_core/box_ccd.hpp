@@ -118,11 +118,13 @@ private:
     // polynomials, built only for the facets the advancement asks about.
     struct Section {
         double lo, hi;
-        int8_t sig[15][6];             // sign of n_axis . g at mid-section (0: structural)
-        std::array<double, 15> tau;    // touching tolerance + rounding allowance per axis
-        std::array<double, 15> scale;  // |n| at mid-section to rank axes; 0 if n has no direction
-        mutable std::array<Poly, 30> Q;  // facet polynomial minus tau: <= 0 is touching
-        mutable uint32_t built = 0;      // which Q are built
+        // Per axis, filled on first use (ensure_axis):
+        mutable int8_t sig[15][6];             // sign of n_axis . g at mid-section (0: structural)
+        mutable std::array<double, 15> tau;    // touching tolerance + rounding allowance
+        mutable std::array<double, 15> scale;  // |n| at mid-section to rank axes; 0: no direction
+        mutable uint32_t ready = 0;            // which axes are filled
+        mutable std::array<Poly, 30> Q;        // facet polynomial minus tau: <= 0 is touching
+        mutable uint32_t built = 0;            // which Q are built
     };
     // The route division, found lazily: for each of the 18 switch polynomials,
     // its next sign change after the last boundary passed (+inf: none).
@@ -137,7 +139,10 @@ private:
     const Poly &facet_poly(const Section &sec, int facet) const;
     void facet_values(const Section &sec, double s, double *q) const;  // Q_k(s), k < 30
     bool apart_on_fixed_axis() const;
-    bool advance(const Section &sec, double &s, int &last) const;
+    void ensure_axis(const Section &sec, int ax) const;
+    // From s in the section: true with s at the first contact, or false when a
+    // facet (`separating`, also a warm start on entry) keeps the section apart.
+    bool advance(const Section &sec, double &s, int &last, int &separating) const;
     int best_facet(const Section &sec, double s) const;
     void contact_geometry(const Section &sec, Hit &hit) const;
     void build_facet_terms() const;
