@@ -36,7 +36,8 @@ Methods (``fixedTimeStep`` 1/240 s per step throughout):
   (btRigidBody instead of btMultiBody), ``p.stepSimulation()``: the baseline of
 * ``native CCD (maximal)``: that scene with Bullet's own CCD on the projectiles,
   ``changeDynamics(ccdSweptSphereRadius=0.025)`` (half the projectile's smallest half
-  extent) and ``contactProcessingThreshold=0``.
+  extent) and ``contactProcessingThreshold=0`` (a world of its own, built the same way,
+  since ``restoreState`` does not undo these settings).
 
 Multibody velocities are unclamped (``maxJointVelocity=10000``); no damping.
 ``us/step`` is, per trial, the mean wall time of a step over the window (it includes
@@ -57,8 +58,10 @@ Run
 
 Options: ``--seed`` (default 2024), ``--trials`` (per N up to 100 boxes, default 6;
 larger scenes get a third of them, at least 1), ``--window``, ``--sizes``, ``--csv``.
-``--quick`` runs 2 trials (1 at 1000 boxes) of 64 steps and stops the substep ladder
-at the first count that reaches zero tunneling (larger counts only cost more).
+``--quick`` runs 2 trials (1 at 1000 boxes) of 64 steps, 20 extra seeds, and leaves
+out substeps 16 (and substeps 8 at 1000 boxes). Trials run seeds outer, methods
+inner, so a burst of load from elsewhere hits every method alike. Every tunneled
+projectile is listed in ``benchmarks/results/plugin_tunneled.csv``.
 The table is markdown and is also written to ``benchmarks/results/plugin.csv``.
 The machine has other load at times: the medians over trials are what to read.
 Then, tunneling only, ``--extra-seeds`` more seeds (default 100) on the 10-box scene
@@ -175,46 +178,46 @@ def _below_ground(c):
 
 
 # ------------------------------------------------------------------ runs
-def run_method(world, method, seeds, window, bar):
-    """Returns (per-trial us/step list, tunneled count, plugin stats or None, tunnel details)."""
+def _world_of(method):
+    return "native" if method.startswith("native") else ("maximal" if "maximal" in method else "multibody")
+
+
+def run_trial(world, method, seed, window, ccds):
+    """One trial: returns (mean us per step, [(projectile, aimed at, final centre)] of the tunneled).
+
+    ``ccds`` keeps one BoxCCD per (world, method) across trials, so its stats add up."""
     cid, state, proj, _ = world
-    ccd = None
-    us, n_tunnel, details = [], 0, []
-    for seed in seeds:
-        p.restoreState(state, physicsClientId=cid)
-        k = int(method.split()[1]) if method.startswith("substeps") else 0
-        p.setPhysicsEngineParameter(fixedTimeStep=DT, numSubSteps=k, physicsClientId=cid)
-        for b, (pos, q, v, w, _) in zip(proj, shots(seed)):
-            p.resetBasePositionAndOrientation(b, pos.tolist(), q.tolist(), physicsClientId=cid)
-            p.resetBaseVelocity(b, v.tolist(), w.tolist(), physicsClientId=cid)
-            if method.startswith("native"):
-                p.changeDynamics(b, -1, ccdSweptSphereRadius=NATIVE_RADIUS, contactProcessingThreshold=0.0,
-                                 physicsClientId=cid)
-        if method == "plugin":
-            if ccd is None:
-                ccd = BoxCCD(cid)
-            step = ccd.step
-        else:
-            def step():
-                p.stepSimulation(physicsClientId=cid)
-        total = 0.0
-        prev = [_centre(cid, b) for b in proj]
-        through_wall = [False] * len(proj)
-        for _ in range(window):
-            t0 = time.perf_counter()
-            step()
-            total += time.perf_counter() - t0
-            for i, b in enumerate(proj):  # untimed
-                c = _centre(cid, b)
-                through_wall[i] |= _crosses_wall(prev[i], c)
-                prev[i] = c
-        us.append(1e6 * total / window)
-        for i, c in enumerate(prev):
-            if (through_wall[i] and c[0] > 0.0) or _below_ground(c):
-                n_tunnel += 1
-                details.append((seed, i, shots(seed)[i][4], tuple(c)))
-        bar.update(1)
-    return us, n_tunnel, (ccd.stats if ccd else None), details
+    p.restoreState(state, physicsClientId=cid)
+    k = int(method.split()[1]) if method.startswith("substeps") else 0
+    p.setPhysicsEngineParameter(fixedTimeStep=DT, numSubSteps=k, physicsClientId=cid)
+    for b, (pos, q, v, w, _) in zip(proj, shots(seed)):
+        p.resetBasePositionAndOrientation(b, pos.tolist(), q.tolist(), physicsClientId=cid)
+        p.resetBaseVelocity(b, v.tolist(), w.tolist(), physicsClientId=cid)
+        if method.startswith("native"):  # a world of its own: restoreState leaves these settings alone
+            p.changeDynamics(b, -1, ccdSweptSphereRadius=NATIVE_RADIUS, contactProcessingThreshold=0.0,
+                             physicsClientId=cid)
+    if method == "plugin":
+        if (cid, method) not in ccds:
+            ccds[(cid, method)] = BoxCCD(cid)
+        step = ccds[(cid, method)].step
+    else:
+        def step():
+            p.stepSimulation(physicsClientId=cid)
+    total = 0.0
+    prev = [_centre(cid, b) for b in proj]
+    through_wall = [False] * len(proj)
+    for _ in range(window):
+        t0 = time.perf_counter()
+        step()
+        total += time.perf_counter() - t0
+        for i, b in enumerate(proj):  # untimed
+            c = _centre(cid, b)
+            through_wall[i] |= _crosses_wall(prev[i], c)
+            prev[i] = c
+    kinds = [s[4] for s in shots(seed)]
+    tunnel = [(i, kinds[i], tuple(c)) for i, c in enumerate(prev)
+              if (through_wall[i] and c[0] > 0.0) or _below_ground(c)]
+    return 1e6 * total / window, tunnel
 
 
 def print_table(title, header, rows):
@@ -229,7 +232,7 @@ def print_table(title, header, rows):
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--quick", action="store_true",
-                    help="2 trials (1 at 1000 boxes), 64-step window, substep ladder stopped at zero tunneling")
+                    help="2 trials (1 at 1000 boxes), 64-step window, no substeps 16 (nor 8 at 1000 boxes)")
     ap.add_argument("--seed", type=int, default=2024)
     ap.add_argument("--trials", type=int, default=None, help="trials per N (default 6; 2 with --quick)")
     ap.add_argument("--window", type=int, default=None, help="timed steps per trial (default 120; 64 with --quick)")
@@ -249,22 +252,27 @@ def main(argv=None):
     print(f"seed {args.seed}, window {window} steps of 1/240 s, {N_PROJ} projectiles per trial")
 
     n_trials = {n: (trials if n <= 100 else max(1, trials // 3)) for n in args.sizes}
-    bar = tqdm(total=sum(n_trials[n] * len(methods) for n in args.sizes), desc="runs", unit="trial")
+    def quick_skip(n):
+        return {"substeps 16"} | ({"substeps 8"} if n >= 1000 else set())
+
+    bar = tqdm(total=sum(n_trials[n] * len([m for m in methods if not (args.quick and m in quick_skip(n))])
+                         for n in args.sizes), desc="runs", unit="trial")
     results, phase_rows, tunnel_log = [], [], []
     for n in args.sizes:
         seeds = [args.seed + t for t in range(n_trials[n])]
-        worlds = {False: build(n, False), True: build(n, True)}
-        res = {}
-        skip = False
-        for m in methods:
-            if skip and m.startswith("substeps"):
-                bar.update(len(seeds))
-                continue
-            us, nt, stats, det = run_method(worlds["maximal" in m], m, seeds, window, bar)
-            res[m] = (us, nt, stats)
-            tunnel_log += [(n, m) + d for d in det]
-            # --quick: stop the substep ladder at the first count with zero tunneling.
-            skip = skip or (args.quick and m.startswith("substeps") and nt == 0)
+        worlds = {w: build(n, w != "multibody") for w in ("multibody", "maximal", "native")}
+        # Seeds outer, methods inner: a burst of load from elsewhere hits every method alike.
+        ms = [m for m in methods if not (args.quick and m in quick_skip(n))]
+        res = {m: ([], 0, None) for m in ms}
+        ccds = {}
+        for seed in seeds:
+            for m in ms:
+                w = worlds[_world_of(m)]
+                us, tun = run_trial(w, m, seed, window, ccds)
+                st = ccds.get((w[0], m))
+                res[m] = (res[m][0] + [us], res[m][1] + len(tun), st.stats if st else None)
+                tunnel_log += [(n, m, seed) + t for t in tun]
+                bar.update(1)
         for w in worlds.values():
             p.disconnect(w[0])
         plain = statistics.median(res["plain"][0])
@@ -289,21 +297,29 @@ def main(argv=None):
     extra_seeds = [args.seed + 1000 + t for t in range(args.extra_seeds)]
     extra = []
     if extra_seeds:
-        worlds = {False: build(10, False), True: build(10, True)}
+        worlds = {w: build(10, w != "multibody") for w in ("multibody", "maximal", "native")}
         bar2 = tqdm(total=len(extra_seeds) * len(extra_methods), desc="extra seeds", unit="trial")
+        ccds = {}
         for m in extra_methods:
-            us, nt, stats, det = run_method(worlds["maximal" in m], m, extra_seeds, window, bar2)
-            extra.append((m, nt, N_PROJ * len(extra_seeds), statistics.median(us), stats))
-            tunnel_log += [("10 extra", m) + d for d in det]
+            w = worlds[_world_of(m)]
+            us, nt = [], 0
+            for seed in extra_seeds:
+                u, tun = run_trial(w, m, seed, window, ccds)
+                us.append(u)
+                nt += len(tun)
+                tunnel_log += [("10 (extra)", m, seed) + t for t in tun]
+                bar2.update(1)
+            st = ccds.get((w[0], m))
+            extra.append((m, nt, N_PROJ * len(extra_seeds), statistics.median(us), st.stats if st else None))
         bar2.close()
         for w in worlds.values():
             p.disconnect(w[0])
     bar.close()
 
-    rows = [(r["n_boxes"], r["method"], f"{r['us_per_step_median']:.0f}", f"{r['ratio_to_plain']:.2f}",
-             f"{r['tunneled']}/{r['shots']}") for r in results]
-    print_table("time per step and tunneling (us/step: median over trials of the mean over the window)",
-                ("boxes", "method", "us/step", "x plain", "tunneled/shots"), rows)
+    rows = [(r["n_boxes"], r["method"], f"{r['us_per_step_median']:.0f}", f"{r['us_per_step_min']:.0f}",
+             f"{r['ratio_to_plain']:.2f}", f"{r['tunneled']}/{r['shots']}") for r in results]
+    print_table("time per step and tunneling (us/step: median (and min) over trials of the mean over the window)",
+                ("boxes", "method", "us/step", "min", "x plain", "tunneled/shots"), rows)
 
     prow = []
     for n, steps, st in phase_rows:
@@ -346,11 +362,12 @@ def main(argv=None):
                        f"{best['us_per_step_median']:.0f} us: {'met' if ok else 'NOT met'}")
         print(f"  {n} boxes, plugin at zero tunneling cheaper than substepping at zero: {verdict}")
 
-    if tunnel_log:
-        print("\ntunneled projectiles (boxes, method, seed, projectile, aimed at, final centre)")
-        for n, m, seed, i, kind, pos in tunnel_log:
-            if m != "plain" and m != "plain (maximal)":
-                print(f"  {n}, {m}, seed {seed}, #{i}, {kind}, ({pos[0]:.3f}, {pos[1]:.3f}, {pos[2]:.3f})")
+    shown = [t for t in tunnel_log if t[1] in ("plugin", "native CCD (maximal)", "substeps 8", "substeps 16")]
+    print("\ntunneled with plugin, native CCD, substeps 8 or 16 (boxes, method, seed, projectile, aimed at, "
+          f"final centre){'' if shown else ': none'}")
+    for n, m, seed, i, kind, pos in shown:
+        print(f"  {n}, {m}, seed {seed}, #{i}, {kind}, ({pos[0]:.3f}, {pos[1]:.3f}, {pos[2]:.3f})")
+    print(f"(every tunneled projectile: {os.path.join(os.path.dirname(args.csv), 'plugin_tunneled.csv')})")
 
     os.makedirs(os.path.dirname(os.path.abspath(args.csv)), exist_ok=True)
     keys = list(dict.fromkeys(k for r in results for k in r))
@@ -358,6 +375,11 @@ def main(argv=None):
         wr = csv.DictWriter(f, fieldnames=keys)
         wr.writeheader()
         wr.writerows(results)
+    with open(os.path.join(os.path.dirname(args.csv), "plugin_tunneled.csv"), "w", newline="") as f:
+        wr = csv.writer(f)
+        wr.writerow(("n_boxes", "method", "seed", "projectile", "aimed_at", "x", "y", "z"))
+        for n, m, seed, i, kind, pos in tunnel_log:
+            wr.writerow((n, m, seed, i, kind) + tuple(round(float(x), 4) for x in pos))
     print(f"\nwritten: {args.csv}")
 
 

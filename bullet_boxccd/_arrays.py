@@ -15,6 +15,8 @@ class InvalidShapeError(InvalidInputError):
 
 def as_float_array(name: str, value, shape: tuple) -> np.ndarray:
     """``value`` as a C-contiguous float64 array of ``shape`` (-1 matches any length)."""
+    if np.iscomplexobj(value):
+        raise InvalidShapeError(f"{name}: expected real numbers, got complex values")
     try:
         a = np.ascontiguousarray(value, dtype=np.float64)
     except (TypeError, ValueError) as e:
