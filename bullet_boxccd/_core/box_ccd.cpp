@@ -233,10 +233,10 @@ bool Problem::ignorable_switch(int k) const {
     return true;
 }
 
-Problem::Switches Problem::first_switches() const {
+Problem::Switches Problem::first_switches(double from) const {
     Switches sw;
     for (int k = 0; k < 18; ++k) {
-        const double r = ignorable_switch(k) ? kNone : first_sign_change(proj_[k], 0.0, 1.0);
+        const double r = ignorable_switch(k) ? kNone : first_sign_change(proj_[k], from, 1.0);
         sw.next[k] = std::isnan(r) ? kNone : r;
     }
     return sw;
@@ -261,7 +261,7 @@ void Problem::pass(Switches &sw, double boundary) const {
 std::vector<double> Problem::sections() const {
     build_facet_terms();
     std::vector<double> cuts{0.0};
-    Switches sw = first_switches();
+    Switches sw = first_switches(0.0);
     for (double b = sw.boundary(); b < 1.0; b = sw.boundary()) {
         cuts.push_back(b);
         pass(sw, b);
@@ -399,19 +399,22 @@ int Problem::best_facet(const Section &sec, double s) const {
 }
 
 // Culling before the route division: if one fixed unit direction u separates
-// the boxes over the whole range, they never touch. For fixed u every term is
-// a quadratic in s, bounded by its three Bernstein control points:
+// the boxes over an interval [lo, hi], they do not touch in it. For fixed u every
+// term is a quadratic in s, bounded by its three Bernstein control points on
+// the interval:
 //   gap_u(s) = |u.d| - sum_g h_g |u.g| >= min |ctrl(u.d)| - sum_g h_g max |ctrl(u.g)|
 // when the control points of u.d share a sign. Candidates: the most separating
-// of the 15 axes at s = 0 and at s = 1. The bound only ever proves pairs apart
-// that are apart by more than the touching tolerance, so it changes speed,
-// never answers.
-bool Problem::apart_on_fixed_axis() const {
+// of the 15 axes at lo and at hi. The bound only ever proves pairs apart that
+// are apart by more than the touching tolerance, so it changes speed, never
+// answers.
+bool Problem::apart_on_fixed_axis(double lo, double hi) const {
     const double margin = tol_.gap_rel * size_ + tol_.rounding * kEps * (dmag_ + hmag_);
-    auto ctrl = [](const Poly &p, double u) {  // control points of u * p (degree <= 2)
-        return std::array<double, 3>{u * p.c[0], u * (p.c[0] + 0.5 * p.c[1]), u * (p.c[0] + p.c[1] + p.c[2])};
+    const double half_w = 0.5 * (hi - lo);
+    auto ctrl = [lo, hi, half_w](const Poly &p, double u) {  // control points of u * p on [lo, hi]
+        const double p_lo = p(lo);
+        return std::array<double, 3>{u * p_lo, u * (p_lo + half_w * (p.c[1] + 2.0 * p.c[2] * lo)), u * p(hi)};
     };
-    for (double s : {0.0, 1.0}) {
+    for (double s : {lo, hi}) {
         std::array<double, 3> gs[6];
         for (int g = 0; g < 6; ++g) gs[g] = g_[g](s);
         const std::array<double, 3> ds = d_(s);
@@ -448,13 +451,25 @@ bool Problem::apart_on_fixed_axis() const {
     return false;
 }
 
+// The start of the first piece of [lo, hi] (halved `depth` times) that no fixed
+// axis proves apart; NaN if every piece is proven apart.
+double Problem::first_unproven(double lo, double hi, int depth) const {
+    if (apart_on_fixed_axis(lo, hi)) return std::numeric_limits<double>::quiet_NaN();
+    if (depth == 0) return lo;
+    const double mid = 0.5 * (lo + hi);
+    const double s = first_unproven(lo, mid, depth - 1);
+    return std::isnan(s) ? first_unproven(mid, hi, depth - 1) : s;
+}
+
 Hit Problem::solve(bool want_geometry) const {
     Hit hit;
-    if (apart_on_fixed_axis()) return hit;
+    // Pieces of the range that one fixed axis keeps apart need no BMS search.
+    const double start = first_unproven(0.0, 1.0, kCullDepth);
+    if (std::isnan(start)) return hit;
     build_facet_terms();
-    Switches sw = first_switches();
+    Switches sw = first_switches(start);
     int last = -1, separating = -1;
-    for (double lo = 0.0;;) {
+    for (double lo = start;;) {
         const double hi = sw.boundary();
         const Section sec = make_section(lo, hi);
         double s = lo;
@@ -524,7 +539,7 @@ void Problem::contact_geometry(const Section &sec, Hit &hit) const {
 
 void Problem::planes(double s, double *normals, double *offsets, int8_t *feat_a, int8_t *feat_b) const {
     build_facet_terms();
-    Switches sw = first_switches();
+    Switches sw = first_switches(0.0);
     double lo = 0.0;
     while (sw.boundary() <= s && sw.boundary() < 1.0) {
         lo = sw.boundary();
