@@ -34,7 +34,7 @@ filters set directly on pybullet are invisible here: set them through
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Optional
 
 import numpy as np
@@ -125,18 +125,25 @@ class BoxCCD:
         Depth (m) of the rewound overlap of the sharp boxes. Default 2e-7.
     self_collision_bodies : iterable of int
         Bodies whose links collide with each other (pybullet cannot report it).
+    exact_time : bool
+        Instead of rewinding only the bodies that touched, stop every free body at the
+        step's earliest contact and simulate the rest of the step from there (up to
+        ``max_partial_steps`` times a step). Articulated bodies are not rewound.
     tolerances : Tolerances
         Solver tolerances.
     """
 
     def __init__(self, physics_client_id: int = 0, *, sweep_threshold: float = 0.25,
                  fit_tolerance: float = 0.05, penetration: float = 2e-7, self_collision_bodies=(),
+                 exact_time: bool = False, max_partial_steps: int = 8,
                  tolerances: Tolerances = DEFAULT_TOLERANCES):
         self.cid = physics_client_id
         self.sweep_threshold = float(sweep_threshold)
         self.fit_tolerance = float(fit_tolerance)
         self.penetration = float(penetration)
         self.hold_fraction = 0.01
+        self.exact_time = bool(exact_time)
+        self.max_partial_steps = int(max_partial_steps)
         self.self_collision_bodies = set(int(b) for b in self_collision_bodies)
         self.tolerances = tolerances
         self.stats = CCDStats()
@@ -268,18 +275,34 @@ class BoxCCD:
         if params.get("numSubSteps", 0) > 1:
             raise ValueError("BoxCCD sweeps whole steps: set numSubSteps to 0 or 1 (it replaces substepping)")
         dt = params["fixedTimeStep"]
-        p.stepSimulation(physicsClientId=self.cid)
-        t_sim = time.perf_counter()
-        events = self._sweep(dt, t_sim)
+        events, elapsed = [], 0.0
+        try:
+            for _ in range(1 + (self.max_partial_steps if self.exact_time else 0)):
+                p.stepSimulation(physicsClientId=self.cid)
+                t_sim = time.perf_counter()
+                self.stats.seconds["step"] += t_sim - t_start
+                found, tau = self._sweep(dt - elapsed, t_sim)
+                events += [_shifted(e, elapsed, dt) for e in found]
+                if not self.exact_time or tau >= 1.0:
+                    break
+                # Exact-time mode: the world stopped at tau of this (partial) step;
+                # simulate the rest of the step from there.
+                elapsed += tau * (dt - elapsed)
+                if dt - elapsed <= 1e-9 * dt:
+                    break
+                p.setPhysicsEngineParameter(fixedTimeStep=dt - elapsed, physicsClientId=self.cid)
+                t_start = time.perf_counter()
+        finally:
+            if elapsed:
+                p.setPhysicsEngineParameter(fixedTimeStep=dt, physicsClientId=self.cid)
         self.stats.steps += 1
-        self.stats.seconds["step"] += t_sim - t_start
         return events
 
     def _sweep(self, dt, t0):
         fr, st = self._frames, self.stats
         n_frames = len(fr.body)
         if not len(fr.half):
-            return []
+            return [], 1.0
         dynamic = np.flatnonzero(~fr.static)
         X1 = np.empty((n_frames, 4, 4))
         v = np.zeros((n_frames, 3))
@@ -294,20 +317,20 @@ class BoxCCD:
         t1 = time.perf_counter()
         st.seconds["state"] += t1 - t0
         if not fast.any():
-            return []
+            return [], 1.0
         st.swept_boxes += int(fast.sum())
         pairs = self._candidate_pairs(path, fast, reach)
         t2 = time.perf_counter()
         st.seconds["broad_phase"] += t2 - t1
         st.candidate_pairs += len(pairs)
         if not len(pairs):
-            return []
+            return [], 1.0
         hits = self._solve_pairs(path, pairs)
         t3 = time.perf_counter()
         st.seconds["solve"] += t3 - t2
-        events = self._resolve(path, hits, dt)
+        events, tau = self._resolve(path, hits, dt)
         st.seconds["rewind"] += time.perf_counter() - t3
-        return events
+        return events, tau
 
     def _box_poses(self, path, boxes, tau):
         return path.at(tau)[self._frames.box_frame[boxes]] @ self._frames.X_CS[boxes]
@@ -422,6 +445,10 @@ class BoxCCD:
             events.append(CCDEvent(int(fr.body[fa]), int(fr.link[fa]), int(fr.body[fb]), int(fr.link[fb]),
                                    c.t, c.t * dt, c.point, c.normal, c.feature, rewound, tau == 0.0))
         st.contacts += len(events)
+        tau_world = min(stop.values(), default=1.0)
+        if self.exact_time and stop:
+            # The whole world goes to the earliest contact: every free body.
+            stop = {int(f): tau_world for f in np.flatnonzero(fr.rewindable)}
         if stop:
             frames = np.array(sorted(stop))
             X = path.take(frames).at(np.array([stop[f] for f in frames]))
@@ -432,7 +459,7 @@ class BoxCCD:
                 # The reset zeroes the velocity: give back the post-solve one.
                 p.resetBaseVelocity(b, v_new.get(f, path.v[f]).tolist(), path.w[f].tolist(), physicsClientId=self.cid)
             st.rewinds += len(frames)
-        return events
+        return events, tau_world
 
     def _release_held(self, path, fa, fb, normal, v_new):
         """A contact pybullet left unresolved: the pair touched when the step began and
@@ -505,6 +532,11 @@ class BoxCCD:
             target = max(d0 + self.penetration, 0.5 * self._frames.half[[a, b]].min())
         tau = _core.first_depth(boxes, tau_first, target)
         return None if np.isnan(tau) else float(tau)
+
+
+def _shifted(e: CCDEvent, elapsed: float, dt: float) -> CCDEvent:
+    """An event of a partial step (exact-time mode), timed from the start of the whole step."""
+    return e if not elapsed else replace(e, time=e.time + elapsed, tau=(e.time + elapsed) / dt)
 
 
 def _pair_key(x, y):

@@ -345,3 +345,26 @@ def test_articulated_link_is_swept_and_its_free_partner_rewound(cid):
     mine = [e for e in events if {e.body_a, e.body_b} == {arm, cube}]
     assert mine and all((e.link_a if e.body_a == arm else e.link_b) == 0 for e in mine)
     assert any(e.rewound for e in mine)
+
+
+# ---------------------------------------------------------- exact-time mode
+def test_exact_time_mode_steps_the_world_to_the_contact_and_on(cid):
+    """The whole world stops at the contact, the rest of the step is simulated from
+    there: no tunneling, the speed kept at restitution 1, and a bystander keeps its
+    exact ballistic path (it was stopped and restarted, not delayed)."""
+    for phase in np.linspace(0, 1, 8, endpoint=False):
+        reset(cid)
+        box(cid, [0.0005, 1, 1], [0, 0, 0], mass=0.0, restitution=1.0)
+        cube = box(cid, [0.05] * 3, [-0.3 - phase * 50 * DT, 0.0, 0.0], restitution=1.0)
+        bystander = box(cid, [0.05] * 3, [-0.3, 3.0, 0.0])
+        p.resetBaseVelocity(cube, [50, 0, 0], [0, 0, 0], physicsClientId=cid)
+        p.resetBaseVelocity(bystander, [20, 0, 0], [0, 0, 0], physicsClientId=cid)
+        ccd = BoxCCD(cid, exact_time=True)
+        n = 40
+        for _ in range(n):
+            ccd.step()
+        assert p.getPhysicsEngineParameters(physicsClientId=cid)["fixedTimeStep"] == DT
+        assert ccd.stats.rewinds >= 2  # the cube and the bystander
+        assert abs(p.getBaseVelocity(cube, physicsClientId=cid)[0][0] + 50.0) <= 1.0
+        assert com_x(cid, cube) < 0.0
+        assert abs(com_x(cid, bystander) - (-0.3 + 20 * n * DT)) < 1e-9
