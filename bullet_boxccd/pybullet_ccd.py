@@ -208,7 +208,10 @@ class BoxCCD:
         self._frames = _Frames(np.array(body, int), np.array(link, int), np.array(static, bool),
                                np.array(rewind, bool), np.array(box_frame, int), half, X_CS, radius)
         self._frame_index = {(b, lk): i for i, (b, lk) in enumerate(zip(body, link))}
-        self._static_pose = self._read_poses(np.flatnonzero(self._frames.static))[0]
+        self._static_pose = self._read_poses(np.flatnonzero(self._frames.static))
+        self._dynamic = np.flatnonzero(~self._frames.static)
+        # A box is swept when its fastest point moves more than this in a step.
+        self._sweep_reach = self.sweep_threshold * 2.0 * half.min(axis=1)
         self.stats.tracked_boxes = len(half)
         self._world_key = self._world_signature()
 
@@ -246,25 +249,25 @@ class BoxCCD:
         return "\n".join(lines)
 
     # ------------------------------------------------------------ per step
-    def _read_poses(self, frames):
-        """(F, 4, 4) centre-of-mass poses and (F, 3) v, w of the given frame indices."""
+    def _read_velocities(self, frames):
+        """(F, 3) v and (F, 3) w (world, centre of mass) of the given frame indices."""
         cid, fr = self.cid, self._frames
+        vel = [p.getBaseVelocity(int(fr.body[f]), physicsClientId=cid) if fr.link[f] == -1 else
+               p.getLinkState(int(fr.body[f]), int(fr.link[f]), computeLinkVelocity=1, physicsClientId=cid)[6:8]
+               for f in frames]
+        vel = np.asarray(vel, dtype=float).reshape(len(frames), 2, 3)
+        return vel[:, 0], vel[:, 1]
+
+    def _read_poses(self, frames):
+        """(F, 4, 4) centre-of-mass poses of the given frame indices."""
+        cid, fr = self.cid, self._frames
+        st = [p.getBasePositionAndOrientation(int(fr.body[f]), physicsClientId=cid) if fr.link[f] == -1 else
+              p.getLinkState(int(fr.body[f]), int(fr.link[f]), physicsClientId=cid)[:2] for f in frames]
         X = np.tile(np.eye(4), (len(frames), 1, 1))
-        v = np.zeros((len(frames), 3))
-        w = np.zeros((len(frames), 3))
-        quats = np.zeros((len(frames), 4))
-        for k, f in enumerate(frames):
-            b, lk = int(fr.body[f]), int(fr.link[f])
-            if lk == -1:
-                pos, quats[k] = p.getBasePositionAndOrientation(b, physicsClientId=cid)
-                v[k], w[k] = p.getBaseVelocity(b, physicsClientId=cid)
-            else:
-                s = p.getLinkState(b, lk, computeLinkVelocity=1, physicsClientId=cid)
-                pos, quats[k], v[k], w[k] = s[0], s[1], s[6], s[7]
-            X[k, :3, 3] = pos
-        if len(frames):
-            X[:, :3, :3] = quat_to_matrix(quats)
-        return X, v, w
+        if st:
+            X[:, :3, 3] = [x[0] for x in st]
+            X[:, :3, :3] = quat_to_matrix([x[1] for x in st])
+        return X
 
     def step(self) -> list:
         """``p.stepSimulation()`` followed by the sweep and rewind; returns this step's contacts."""
@@ -303,21 +306,24 @@ class BoxCCD:
         n_frames = len(fr.body)
         if not len(fr.half):
             return [], 1.0
-        dynamic = np.flatnonzero(~fr.static)
-        X1 = np.empty((n_frames, 4, 4))
+        dynamic = self._dynamic
         v = np.zeros((n_frames, 3))
         w = np.zeros((n_frames, 3))
-        X1[fr.static] = self._static_pose
-        X1[dynamic], v[dynamic], w[dynamic] = self._read_poses(dynamic)
-        path = StepPath(X1, v, w, dt)
-        # Fast boxes: the farthest point moves more than the threshold.
+        v[dynamic], w[dynamic] = self._read_velocities(dynamic)
+        # Fast boxes: the farthest point moves more than the threshold (Bullet
+        # turns a body by at most |w| dt in a step).
         bf = fr.box_frame
-        reach = np.linalg.norm(path.dv, axis=1)[bf] + path.angle[bf] * fr.radius
-        fast = reach > self.sweep_threshold * 2.0 * fr.half.min(axis=1)
+        reach = (np.linalg.norm(v, axis=1)[bf] + np.linalg.norm(w, axis=1)[bf] * fr.radius) * dt
+        fast = reach > self._sweep_reach
+        if not fast.any():
+            st.seconds["state"] += time.perf_counter() - t0
+            return [], 1.0
+        X1 = np.empty((n_frames, 4, 4))
+        X1[fr.static] = self._static_pose
+        X1[dynamic] = self._read_poses(dynamic)
+        path = StepPath(X1, v, w, dt)
         t1 = time.perf_counter()
         st.seconds["state"] += t1 - t0
-        if not fast.any():
-            return [], 1.0
         st.swept_boxes += int(fast.sum())
         pairs = self._candidate_pairs(path, fast, reach)
         t2 = time.perf_counter()
