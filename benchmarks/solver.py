@@ -81,8 +81,7 @@ import time
 
 import numpy as np
 
-from bullet_boxccd import Box, QuadraticMotion, time_of_impact, time_of_impact_batch
-from bullet_boxccd import _core
+from bullet_boxccd import Box, QuadraticMotion, _core, time_of_impact, time_of_impact_batch
 
 try:
     import fcl

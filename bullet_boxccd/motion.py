@@ -181,13 +181,13 @@ def matrix_to_quat(R) -> np.ndarray:
                                (a[:, 1, 0] - a[:, 0, 1]) / s, 0.25 * s], axis=1)
         else:
             i = case - 1
-            j, l = (i + 1) % 3, (i + 2) % 3
-            s = 2.0 * np.sqrt(1.0 + a[:, i, i] - a[:, j, j] - a[:, l, l])
+            j, n = (i + 1) % 3, (i + 2) % 3
+            s = 2.0 * np.sqrt(1.0 + a[:, i, i] - a[:, j, j] - a[:, n, n])
             qi = np.empty((len(a), 4))
             qi[:, i] = 0.25 * s
             qi[:, j] = (a[:, j, i] + a[:, i, j]) / s
-            qi[:, l] = (a[:, l, i] + a[:, i, l]) / s
-            qi[:, 3] = (a[:, l, j] - a[:, j, l]) / s
+            qi[:, n] = (a[:, n, i] + a[:, i, n]) / s
+            qi[:, 3] = (a[:, n, j] - a[:, j, n]) / s
             q[sel] = qi
     q /= np.linalg.norm(q, axis=1, keepdims=True)
     return q.reshape(R.shape[:-2] + (4,))

@@ -35,7 +35,6 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field, replace
-from typing import Optional
 
 import numpy as np
 import pybullet as p
@@ -192,8 +191,7 @@ class BoxCCD:
                 shapes = self._shapes(b, lk)
                 if not shapes:
                     continue
-                dyn = p.getDynamicsInfo(b, lk, physicsClientId=cid)
-                base_mass = dyn[0] if lk == -1 else p.getDynamicsInfo(b, -1, physicsClientId=cid)[0]
+                base_mass = p.getDynamicsInfo(b, -1, physicsClientId=cid)[0]
                 body.append(b)
                 link.append(lk)
                 static.append(n_joints == 0 and base_mass == 0.0)
@@ -325,7 +323,7 @@ class BoxCCD:
         t1 = time.perf_counter()
         st.seconds["state"] += t1 - t0
         st.swept_boxes += int(fast.sum())
-        pairs = self._candidate_pairs(path, fast, reach)
+        pairs = self._candidate_pairs(path, fast)
         t2 = time.perf_counter()
         st.seconds["broad_phase"] += t2 - t1
         st.candidate_pairs += len(pairs)
@@ -341,26 +339,18 @@ class BoxCCD:
     def _box_poses(self, path, boxes, tau):
         return path.at(tau)[self._frames.box_frame[boxes]] @ self._frames.X_CS[boxes]
 
-    def _candidate_pairs(self, path, fast, reach):
+    def _candidate_pairs(self, path, fast):
         """(P, 2) box index pairs whose swept bounding boxes meet, at least one box fast."""
         fr = self._frames
-        n = len(fr.half)
-        lo = np.empty((n, 3))
-        hi = np.empty((n, 3))
         # Exact bounds at five poses along the path, widened by the largest
         # deviation of a vertex's arc from its chords between them.
         taus = np.linspace(0.0, 1.0, 5)
         verts_local = _SIGNS[None] * fr.half[:, None, :]  # (B, 8, 3)
-        frame_poses = path.at_times(taus)
-        sag = fr.radius * (0.25 * path.angle[fr.box_frame]) ** 2 / 8.0
-        for k, X in enumerate(frame_poses):
-            Xb = X[fr.box_frame] @ fr.X_CS
-            V = np.einsum("bij,bvj->bvi", Xb[:, :3, :3], verts_local) + Xb[:, None, :3, 3]
-            vlo, vhi = V.min(axis=1), V.max(axis=1)
-            lo = vlo if k == 0 else np.minimum(lo, vlo)
-            hi = vhi if k == 0 else np.maximum(hi, vhi)
-        lo -= sag[:, None] + 1e-9
-        hi += sag[:, None] + 1e-9
+        Xb = path.at_times(taus)[:, fr.box_frame] @ fr.X_CS  # (5, B, 4, 4)
+        V = np.einsum("kbij,bvj->kbvi", Xb[..., :3, :3], verts_local) + Xb[:, :, None, :3, 3]
+        sag = fr.radius * (0.25 * path.angle[fr.box_frame]) ** 2 / 8.0 + 1e-9
+        lo = V.min(axis=(0, 2)) - sag[:, None]
+        hi = V.max(axis=(0, 2)) + sag[:, None]
         idx_fast = np.flatnonzero(fast)
         overlap = np.all((lo[idx_fast, None, :] <= hi[None, :, :]) & (lo[None, :, :] <= hi[idx_fast, None, :]), axis=2)
         i, j = np.nonzero(overlap)
@@ -400,7 +390,7 @@ class BoxCCD:
         pa = np.array([slot[int(x)] for x in pairs[:, 0]])
         pb = np.array([slot[int(x)] for x in pairs[:, 1]])
         n_pair = np.maximum(pieces[pa], pieces[pb])
-        hits = []
+        first = {}  # (box a, box b) -> earliest tau over the pieces
         for n in np.unique(n_pair):
             rows = np.flatnonzero(n_pair == n)
             sel = np.unique(np.concatenate([pa[rows], pb[rows]]))
@@ -408,8 +398,9 @@ class BoxCCD:
             sub[sel] = np.arange(len(sel))
             coeffs, err = path.take(frames[sel]).fit(fr.X_CS[boxes[sel]], int(n))
             # Inflate by the fit's reach: a point at distance r is off by err * r,
-            # and a unit ball fits in the sheared box once scaled by 1 / (1 - err).
-            grow = err * fr.radius[boxes[sel]] / np.maximum(1.0 - err, 0.5)
+            # and a ball fits in the sheared box once scaled by 1 / (1 - err)
+            # (err < 0.5: Bullet turns a body by less than pi in a step).
+            grow = err * fr.radius[boxes[sel]] / (1.0 - err)
             half = fr.half[boxes[sel]] + grow[:, None]
             ia, ib = sub[pa[rows]], sub[pb[rows]]
             for k in range(int(n)):
@@ -417,13 +408,9 @@ class BoxCCD:
                                          (0.0, 1.0), self.tolerances)
                 st.solver_rows += len(rows)
                 for r in np.flatnonzero(~np.isnan(t)):
-                    hits.append((int(boxes[sel[ia[r]]]), int(boxes[sel[ib[r]]]), (k + t[r]) / n, k, int(n)))
-        # Keep each pair's earliest piece.
-        first = {}
-        for a, b, tau, k, n in hits:
-            if (a, b) not in first or tau < first[(a, b)][0]:
-                first[(a, b)] = (tau, k, n)
-        return [(a, b, tau) for (a, b), (tau, k, n) in first.items()]
+                    key = (int(boxes[sel[ia[r]]]), int(boxes[sel[ib[r]]]))
+                    first[key] = min(first.get(key, np.inf), (k + t[r]) / n)
+        return [(a, b, tau) for (a, b), tau in first.items()]
 
     def _resolve(self, path, hits, dt):
         """Events and rewinds: each free body goes to its earliest rewind time."""

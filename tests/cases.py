@@ -3,10 +3,10 @@
 from __future__ import annotations
 
 import numpy as np
+from oracle import Case
 
 from bullet_boxccd import QuadraticMotion
 from bullet_boxccd.motion import rotation_matrix
-from oracle import Case
 
 FAMILIES = ("ballistic", "rotating", "one_static", "both_moving", "off_centre", "thin_plates")
 

@@ -21,13 +21,12 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-import mpmath as mp
 import numpy as np
+from cases import make_case
+from oracle import Case, mp_gap, reference
 
 from bullet_boxccd import Box, QuadraticMotion, time_of_impact
 from bullet_boxccd.motion import rotation_matrix
-from cases import make_case
-from oracle import Case, mp_gap, reference
 
 LATE = 1e-12  # of the range: later than the truth by more than this is "late"
 
@@ -134,7 +133,8 @@ def fam_size(n):
     """Box size from 1e-4 to 1e4 (the whole scene scaled)."""
     for s in (1e-4, 1e-2, 1e2, 1e4):
         for seed in range(n):
-            yield f"{s:.0e}", scaled(make_case(seed, "rotating"), s / 10 ** np.log10(make_case(seed, "rotating").size()))
+            case = make_case(seed, "rotating")
+            yield f"{s:.0e}", scaled(case, s / case.size())
 
 
 def fam_aspect(n):
@@ -157,7 +157,7 @@ def fam_speed(n):
     """Up to 1e4 box lengths per unit time (B starts far and arrives mid-range)."""
     rng = np.random.default_rng(2)
     for v in (1e2, 1e3, 1e4):
-        for seed in range(n):
+        for _ in range(n):
             h = rng.uniform(0.3, 1.0, 3)
             d = rng.normal(size=3)
             d /= np.linalg.norm(d)
@@ -172,7 +172,7 @@ def fam_rotation(n):
     """Rotation over the range up to pi (both boxes)."""
     for angle in (np.pi / 2, 0.9 * np.pi, np.pi):
         rng = np.random.default_rng(3)
-        for seed in range(n):
+        for _ in range(n):
             h = rng.uniform(0.2, 1.0, 3)
             start = rng.normal(size=3)
             start *= 2.5 / np.linalg.norm(start)
@@ -188,7 +188,7 @@ def fam_near_parallel(n):
     """Edges of the two boxes parallel up to a tilt theta, down to 1e-15 rad and exactly."""
     for theta in (1e-2, 1e-4, 1e-6, 1e-9, 1e-12, 1e-15, 0.0):
         rng = np.random.default_rng(4)
-        for seed in range(n):
+        for _ in range(n):
             axis = rng.normal(size=3)
             axis[2] = 0.0
             Ra = rotation_matrix((0, 0, 1), np.pi / 4)
@@ -203,7 +203,7 @@ def fam_faces(n):
     """Faces parallel up to a tilt theta (face-on-face approach), down to 1e-15 rad and exactly."""
     for theta in (1e-3, 1e-6, 1e-9, 1e-12, 1e-15, 0.0):
         rng = np.random.default_rng(5)
-        for seed in range(n):
+        for _ in range(n):
             Rb = rotation_matrix(rng.normal(size=3), theta)
             m_b = QuadraticMotion.ballistic((3.0, rng.uniform(-0.5, 0.5), rng.uniform(-0.5, 0.5)), (-4.0, 0, 0),
                                             rotation=Rb)
@@ -251,7 +251,7 @@ def fam_grazing(n):
     h = np.full(3, 0.5)
     for g in (0.0, 1e-9):
         rng = np.random.default_rng(7)
-        for seed in range(n):
+        for _ in range(n):
             k = rng.uniform(0.5, 5.0)
             tm = rng.uniform(0.2, 0.8)
             # y(t) = 1 + g + k (t - tm)^2, B's bottom at y - 0.5

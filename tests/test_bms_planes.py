@@ -6,12 +6,12 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from cases import make_case
+from oracle import SIGNS, world_vertices
 from scipy.spatial import ConvexHull
 
 from bullet_boxccd import Box, QuadraticMotion, bms_planes, sections
 from bullet_boxccd.geometry import feature_name
-from cases import FAMILIES, make_case
-from oracle import SIGNS, world_vertices
 
 
 def hull_facets(VA, VB, L):
@@ -70,7 +70,7 @@ def test_topology_is_constant_inside_sections_and_changes_across_them():
         cuts = sections(*args, tr)
         assert cuts[0] == case.t0 and cuts[-1] == case.t1 and np.all(np.diff(cuts) > 0)
 
-        def labels(t):
+        def labels(t, args=args, tr=tr):
             return [p.feature for p in bms_planes(*args, t, tr)]
 
         for lo, hi in zip(cuts[:-1], cuts[1:]):

@@ -5,6 +5,7 @@ exception and never a crash; results are bit-identical across runs."""
 from __future__ import annotations
 
 import numpy as np
+from cases import FAMILIES, make_case
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -17,7 +18,6 @@ from bullet_boxccd import (
     time_of_impact,
     time_of_impact_batch,
 )
-from cases import FAMILIES, make_case
 
 HOSTILE = st.sampled_from([0.0, -0.0, 1.0, -1.0, 5e-324, 2.2e-308, 1e-300, 1e300, 1.7e308, -1.7e308, np.nan, np.inf,
                            -np.inf, 0.5, 3.0, 1e-9])

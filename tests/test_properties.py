@@ -4,13 +4,13 @@ applied to both motions, swapping the boxes, and a linear change of time."""
 from __future__ import annotations
 
 import numpy as np
+from cases import FAMILIES, make_case
 from hypothesis import given
 from hypothesis import strategies as st
+from oracle import mp_gap
 
 from bullet_boxccd import Box, QuadraticMotion, time_of_impact
 from bullet_boxccd.motion import rotation_matrix
-from cases import FAMILIES, make_case
-from oracle import mp_gap
 
 cases = st.builds(make_case, st.integers(0, 10**6), st.sampled_from(FAMILIES))
 

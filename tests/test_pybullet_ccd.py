@@ -132,7 +132,8 @@ def test_spinning_plank_never_passes_through(cid, radius):
         for use in (False, True):
             reset(cid)
             box(cid, [0.05] * 3, [radius, 0, 0], mass=0.0)
-            plank = box(cid, [0.5, 0.01, 0.1], [0, 0, 0], orn=p.getQuaternionFromEuler([0, 0, np.pi / 2 + k / 40 * 0.83]))
+            yaw = np.pi / 2 + k / 40 * 0.83
+            plank = box(cid, [0.5, 0.01, 0.1], [0, 0, 0], orn=p.getQuaternionFromEuler([0, 0, yaw]))
             p.resetBaseVelocity(plank, [0, 0, 0], [0, 0, -200.0], physicsClientId=cid)
             ccd = BoxCCD(cid) if use else None
             for _ in range(8):

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from cases import FAMILIES, make_case
 
 from bullet_boxccd import (
     Box,
@@ -19,7 +20,6 @@ from bullet_boxccd import (
     time_of_impact_batch,
 )
 from bullet_boxccd.motion import rotation_matrix
-from cases import FAMILIES, make_case
 
 CUBE = Box.centered((0.5, 0.5, 0.5))
 STATIC = QuadraticMotion.static()

@@ -16,10 +16,10 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-
-from bullet_boxccd import Box, QuadraticMotion, time_of_impact
 from cases import FAMILIES, make_case
 from oracle import mp_gap, reference
+
+from bullet_boxccd import Box, QuadraticMotion, time_of_impact
 
 N_PER_FAMILY = 200
 TIME_TOL = 1e-9  # of the range

@@ -4,7 +4,6 @@ takes a reduced tier (3 cases per parameter); ``pytest -m stress`` the full swee
 from __future__ import annotations
 
 import pytest
-
 import stress
 
 # Largest mpmath gap at a reported contact, in box sizes: the touching tolerance
