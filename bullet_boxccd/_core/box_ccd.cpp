@@ -354,8 +354,12 @@ bool Problem::advance(const Section &sec, double &s, int &last, int &separating)
     }
     uint32_t touching = 0;  // facets within rounding of zero at this s
     double q[30];
+    double evaluated_at = std::numeric_limits<double>::quiet_NaN();
     for (int step = 0; step < tol_.max_steps; ++step) {
-        facet_values(sec, s, q);
+        if (!(s == evaluated_at)) {
+            facet_values(sec, s, q);
+            evaluated_at = s;
+        }
         int best = -1;
         double best_v = 0.0;
         for (int k = 0; k < 30; ++k) {
@@ -404,36 +408,41 @@ int Problem::best_facet(const Section &sec, double s) const {
 // the interval:
 //   gap_u(s) = |u.d| - sum_g h_g |u.g| >= min |ctrl(u.d)| - sum_g h_g max |ctrl(u.g)|
 // when the control points of u.d share a sign. Candidates: the most separating
-// of the 15 axes at lo and at hi. The bound only ever proves pairs apart that
-// are apart by more than the touching tolerance, so it changes speed, never
-// answers.
-bool Problem::apart_on_fixed_axis(double lo, double hi) const {
+// of the 15 axes at lo and at hi (computed once per sample time). The bound only
+// ever proves pairs apart that are apart by more than the touching tolerance, so
+// it changes speed, never answers.
+// The most separating of the 15 axes at s (unit), and its separation; 0 if none separates.
+Problem::Axis Problem::best_axis_at(double s) const {
+    std::array<double, 3> gs[6];
+    for (int g = 0; g < 6; ++g) gs[g] = g_[g](s);
+    const std::array<double, 3> ds = d_(s);
+    Axis best;
+    for (int ax = 0; ax < 15; ++ax) {
+        const std::array<double, 3> &a = gs[axis_generator(ax, 0)], &b = gs[axis_generator(ax, 1)];
+        std::array<double, 3> n = {a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]};
+        const double nn = norm3(n);
+        if (!(nn > 1e-9 * norm3(a) * norm3(b))) continue;
+        for (double &x : n) x /= nn;
+        double gap = std::fabs(n[0] * ds[0] + n[1] * ds[1] + n[2] * ds[2]);
+        for (int g = 0; g < 6; ++g) gap -= h_[g] * std::fabs(n[0] * gs[g][0] + n[1] * gs[g][1] + n[2] * gs[g][2]);
+        if (gap > best.gap) { best.gap = gap; best.u = n; }
+    }
+    return best;
+}
+
+bool Problem::apart_on_fixed_axis(double lo, double hi, const Axis &at_lo, const Axis &at_hi) const {
     const double margin = tol_.gap_rel * size_ + tol_.rounding * kEps * (dmag_ + hmag_);
     const double half_w = 0.5 * (hi - lo);
     auto ctrl = [lo, hi, half_w](const Poly &p, double u) {  // control points of u * p on [lo, hi]
         const double p_lo = p(lo);
         return std::array<double, 3>{u * p_lo, u * (p_lo + half_w * (p.c[1] + 2.0 * p.c[2] * lo)), u * p(hi)};
     };
-    for (double s : {lo, hi}) {
-        std::array<double, 3> gs[6];
-        for (int g = 0; g < 6; ++g) gs[g] = g_[g](s);
-        const std::array<double, 3> ds = d_(s);
-        double best_gap = 0.0;
-        std::array<double, 3> best_u{};
-        for (int ax = 0; ax < 15; ++ax) {
-            const std::array<double, 3> &a = gs[axis_generator(ax, 0)], &b = gs[axis_generator(ax, 1)];
-            std::array<double, 3> n = {a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]};
-            const double nn = norm3(n);
-            if (!(nn > 1e-9 * norm3(a) * norm3(b))) continue;
-            for (double &x : n) x /= nn;
-            double gap = std::fabs(n[0] * ds[0] + n[1] * ds[1] + n[2] * ds[2]);
-            for (int g = 0; g < 6; ++g) gap -= h_[g] * std::fabs(n[0] * gs[g][0] + n[1] * gs[g][1] + n[2] * gs[g][2]);
-            if (gap > best_gap) { best_gap = gap; best_u = n; }
-        }
-        if (best_gap <= margin) continue;
+    for (const Axis *axis : {&at_lo, &at_hi}) {
+        if (axis->gap <= margin) continue;
+        const std::array<double, 3> &u = axis->u;
         std::array<double, 3> bd{};
         for (int r = 0; r < 3; ++r) {
-            const auto c = ctrl(d_.x[r], best_u[r]);
+            const auto c = ctrl(d_.x[r], u[r]);
             for (int k = 0; k < 3; ++k) bd[k] += c[k];
         }
         double lower = std::min({std::fabs(bd[0]), std::fabs(bd[1]), std::fabs(bd[2])});
@@ -441,7 +450,7 @@ bool Problem::apart_on_fixed_axis(double lo, double hi) const {
         for (int g = 0; g < 6; ++g) {
             std::array<double, 3> bg{};
             for (int r = 0; r < 3; ++r) {
-                const auto c = ctrl(g_[g].x[r], best_u[r]);
+                const auto c = ctrl(g_[g].x[r], u[r]);
                 for (int k = 0; k < 3; ++k) bg[k] += c[k];
             }
             lower -= h_[g] * std::max({std::fabs(bg[0]), std::fabs(bg[1]), std::fabs(bg[2])});
@@ -453,18 +462,19 @@ bool Problem::apart_on_fixed_axis(double lo, double hi) const {
 
 // The start of the first piece of [lo, hi] (halved `depth` times) that no fixed
 // axis proves apart; NaN if every piece is proven apart.
-double Problem::first_unproven(double lo, double hi, int depth) const {
-    if (apart_on_fixed_axis(lo, hi)) return std::numeric_limits<double>::quiet_NaN();
+double Problem::first_unproven(double lo, double hi, const Axis &at_lo, const Axis &at_hi, int depth) const {
+    if (apart_on_fixed_axis(lo, hi, at_lo, at_hi)) return std::numeric_limits<double>::quiet_NaN();
     if (depth == 0) return lo;
     const double mid = 0.5 * (lo + hi);
-    const double s = first_unproven(lo, mid, depth - 1);
-    return std::isnan(s) ? first_unproven(mid, hi, depth - 1) : s;
+    const Axis at_mid = best_axis_at(mid);
+    const double s = first_unproven(lo, mid, at_lo, at_mid, depth - 1);
+    return std::isnan(s) ? first_unproven(mid, hi, at_mid, at_hi, depth - 1) : s;
 }
 
 Hit Problem::solve(bool want_geometry) const {
     Hit hit;
     // Pieces of the range that one fixed axis keeps apart need no BMS search.
-    const double start = first_unproven(0.0, 1.0, kCullDepth);
+    const double start = first_unproven(0.0, 1.0, best_axis_at(0.0), best_axis_at(1.0), kCullDepth);
     if (std::isnan(start)) return hit;
     build_facet_terms();
     Switches sw = first_switches(start);

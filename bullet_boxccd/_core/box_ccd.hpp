@@ -138,8 +138,13 @@ private:
     Section make_section(double lo, double hi) const;
     const Poly &facet_poly(const Section &sec, int facet) const;
     void facet_values(const Section &sec, double s, double *q) const;  // Q_k(s), k < 30
-    bool apart_on_fixed_axis(double lo, double hi) const;
-    double first_unproven(double lo, double hi, int depth) const;
+    struct Axis {
+        std::array<double, 3> u{};
+        double gap = 0.0;
+    };
+    Axis best_axis_at(double s) const;
+    bool apart_on_fixed_axis(double lo, double hi, const Axis &at_lo, const Axis &at_hi) const;
+    double first_unproven(double lo, double hi, const Axis &at_lo, const Axis &at_hi, int depth) const;
     static constexpr int kCullDepth = 2;  // up to 4 pieces: measured best on the benchmark pairs
     void ensure_axis(const Section &sec, int ax) const;
     // From s in the section: true with s at the first contact, or false when a
