@@ -316,14 +316,29 @@ class BoxCCD:
         if not fast.any():
             st.seconds["state"] += time.perf_counter() - t0
             return [], 1.0
-        X1 = np.empty((n_frames, 4, 4))
+        # Poses: the fast frames, then only the partners pybullet's own broad phase
+        # finds near their swept bounds (slow bodies can be anywhere within their
+        # reach of the pose it knows, so the query is widened by the largest).
+        X1 = np.tile(np.eye(4), (n_frames, 1, 1))
         X1[fr.static] = self._static_pose
-        X1[dynamic] = self._read_poses(dynamic)
+        fast_boxes = np.flatnonzero(fast)
+        fast_frames = set(bf[fast_boxes].tolist())
+        X1[sorted(fast_frames)] = self._read_poses(sorted(fast_frames))
+        lo, hi = self._swept_bounds(StepPath(X1, v, w, dt), fast_boxes)
+        slack = reach[~fast & ~fr.static[bf]].max(initial=0.0) + 1e-9
+        near = set(fast_frames)
+        for k in range(len(fast_boxes)):
+            found = p.getOverlappingObjects((lo[k] - slack).tolist(), (hi[k] + slack).tolist(),
+                                            physicsClientId=self.cid) or ()
+            near.update(self._frame_index[key] for key in found if key in self._frame_index)
+        moving = sorted(f for f in near - fast_frames if not fr.static[f])
+        if moving:
+            X1[moving] = self._read_poses(moving)
         path = StepPath(X1, v, w, dt)
         t1 = time.perf_counter()
         st.seconds["state"] += t1 - t0
-        st.swept_boxes += int(fast.sum())
-        pairs = self._candidate_pairs(path, fast)
+        st.swept_boxes += len(fast_boxes)
+        pairs = self._candidate_pairs(path, fast, np.flatnonzero(np.isin(bf, sorted(near))))
         t2 = time.perf_counter()
         st.seconds["broad_phase"] += t2 - t1
         st.candidate_pairs += len(pairs)
@@ -332,29 +347,31 @@ class BoxCCD:
         hits = self._solve_pairs(path, pairs)
         t3 = time.perf_counter()
         st.seconds["solve"] += t3 - t2
-        events, tau = self._resolve(path, hits, dt)
+        events, tau = self._resolve(path, hits, dt, near)
         st.seconds["rewind"] += time.perf_counter() - t3
         return events, tau
 
-    def _box_poses(self, path, boxes, tau):
-        return path.at(tau)[self._frames.box_frame[boxes]] @ self._frames.X_CS[boxes]
-
-    def _candidate_pairs(self, path, fast):
-        """(P, 2) box index pairs whose swept bounding boxes meet, at least one box fast."""
+    def _swept_bounds(self, path, boxes):
+        """(n, 3) lo and hi: bounds of the given boxes over the step. Exact at five poses
+        (centre +- |R| half), widened by the largest deviation of a point's arc from
+        its chords between them."""
         fr = self._frames
-        # Exact bounds at five poses along the path, widened by the largest
-        # deviation of a vertex's arc from its chords between them.
-        taus = np.linspace(0.0, 1.0, 5)
-        verts_local = _SIGNS[None] * fr.half[:, None, :]  # (B, 8, 3)
-        Xb = path.at_times(taus)[:, fr.box_frame] @ fr.X_CS  # (5, B, 4, 4)
-        V = np.einsum("kbij,bvj->kbvi", Xb[..., :3, :3], verts_local) + Xb[:, :, None, :3, 3]
-        sag = fr.radius * (0.25 * path.angle[fr.box_frame]) ** 2 / 8.0 + 1e-9
-        lo = V.min(axis=(0, 2)) - sag[:, None]
-        hi = V.max(axis=(0, 2)) + sag[:, None]
-        idx_fast = np.flatnonzero(fast)
-        overlap = np.all((lo[idx_fast, None, :] <= hi[None, :, :]) & (lo[None, :, :] <= hi[idx_fast, None, :]), axis=2)
+        frames = fr.box_frame[boxes]
+        Xb = path.at_times(np.linspace(0.0, 1.0, 5))[:, frames] @ fr.X_CS[boxes]  # (5, n, 4, 4)
+        extent = np.einsum("knij,nj->kni", np.abs(Xb[..., :3, :3]), fr.half[boxes])
+        sag = fr.radius[boxes] * (0.25 * path.angle[frames]) ** 2 / 8.0 + 1e-9
+        lo = (Xb[..., :3, 3] - extent).min(axis=0) - sag[:, None]
+        hi = (Xb[..., :3, 3] + extent).max(axis=0) + sag[:, None]
+        return lo, hi
+
+    def _candidate_pairs(self, path, fast, involved):
+        """(P, 2) box index pairs among ``involved`` whose swept bounds meet, at least one fast."""
+        fr = self._frames
+        lo, hi = self._swept_bounds(path, involved)
+        fi = np.flatnonzero(fast[involved])
+        overlap = np.all((lo[fi, None, :] <= hi[None, :, :]) & (lo[None, :, :] <= hi[fi, None, :]), axis=2)
         i, j = np.nonzero(overlap)
-        a, b = idx_fast[i], j
+        a, b = involved[fi[i]], involved[j]
         keep = (a != b) & ~(fast[b] & (b < a))  # each fast-fast pair once
         a, b = a[keep], b[keep]
         fa, fb = fr.box_frame[a], fr.box_frame[b]
@@ -412,8 +429,10 @@ class BoxCCD:
                     first[key] = min(first.get(key, np.inf), (k + t[r]) / n)
         return [(a, b, tau) for (a, b), tau in first.items()]
 
-    def _resolve(self, path, hits, dt):
-        """Events and rewinds: each free body goes to its earliest rewind time."""
+    def _resolve(self, path, hits, dt, known):
+        """Events and rewinds: each free body goes to its earliest rewind time.
+        ``known``: the frames whose poses were read this step (the others are read
+        here if exact-time mode stops them too)."""
         fr, st = self._frames, self.stats
         stop = {}
         found = []
@@ -442,6 +461,9 @@ class BoxCCD:
         if self.exact_time and stop:
             # The whole world goes to the earliest contact: every free body.
             stop = {int(f): tau_world for f in np.flatnonzero(fr.rewindable)}
+            unread = sorted(set(stop) - set(known))
+            if unread:
+                path.X_W1[unread] = self._read_poses(unread)
         if stop:
             frames = np.array(sorted(stop))
             X = path.take(frames).at(np.array([stop[f] for f in frames]))

@@ -358,6 +358,8 @@ def test_exact_time_mode_steps_the_world_to_the_contact_and_on(cid):
         box(cid, [0.0005, 1, 1], [0, 0, 0], mass=0.0, restitution=1.0)
         cube = box(cid, [0.05] * 3, [-0.3 - phase * 50 * DT, 0.0, 0.0], restitution=1.0)
         bystander = box(cid, [0.05] * 3, [-0.3, 3.0, 0.0])
+        idler = box(cid, [0.05] * 3, [5.0, -3.0, 0.0])  # slow and far: never swept, still stopped
+        p.resetBaseVelocity(idler, [0.1, 0, 0], [0, 0, 0], physicsClientId=cid)
         p.resetBaseVelocity(cube, [50, 0, 0], [0, 0, 0], physicsClientId=cid)
         p.resetBaseVelocity(bystander, [20, 0, 0], [0, 0, 0], physicsClientId=cid)
         ccd = BoxCCD(cid, exact_time=True)
@@ -369,3 +371,4 @@ def test_exact_time_mode_steps_the_world_to_the_contact_and_on(cid):
         assert abs(p.getBaseVelocity(cube, physicsClientId=cid)[0][0] + 50.0) <= 1.0
         assert com_x(cid, cube) < 0.0
         assert abs(com_x(cid, bystander) - (-0.3 + 20 * n * DT)) < 1e-9
+        assert abs(com_x(cid, idler) - (5.0 + 0.1 * n * DT)) < 1e-9
