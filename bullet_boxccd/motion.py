@@ -152,13 +152,19 @@ _FIT_ERROR_PER_CUBED_ANGLE = 2.0 * np.sqrt(3.0) / 216.0
 def quat_to_matrix(q) -> np.ndarray:
     """(..., 3, 3) rotation matrices of (..., 4) quaternions (x, y, z, w), pybullet's order."""
     q = np.asarray(q, dtype=float)
-    q = q / np.linalg.norm(q, axis=-1, keepdims=True)
-    x, y, z, w = np.moveaxis(q, -1, 0)
-    return np.stack([
-        np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)], -1),
-        np.stack([2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)], -1),
-        np.stack([2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)], -1),
-    ], -2)
+    q = q * np.sqrt(2.0 / np.einsum("...i,...i->...", q, q))[..., None]  # scaled: the products below carry the 2
+    x, y, z, w = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
+    R = np.empty(q.shape[:-1] + (3, 3))
+    R[..., 0, 0] = 1 - (y * y + z * z)
+    R[..., 0, 1] = x * y - z * w
+    R[..., 0, 2] = x * z + y * w
+    R[..., 1, 0] = x * y + z * w
+    R[..., 1, 1] = 1 - (x * x + z * z)
+    R[..., 1, 2] = y * z - x * w
+    R[..., 2, 0] = x * z - y * w
+    R[..., 2, 1] = y * z + x * w
+    R[..., 2, 2] = 1 - (x * x + y * y)
+    return R
 
 
 def matrix_to_quat(R) -> np.ndarray:
@@ -242,15 +248,19 @@ class StepPath:
         """(N, 4, 4) poses at step fraction ``tau`` (a scalar, or (N,): one per frame)."""
         return self._at(np.broadcast_to(np.asarray(tau, dtype=float), self.angle.shape))
 
-    def at_times(self, taus) -> np.ndarray:
-        """(K, N, 4, 4) poses of every frame at each of the step fractions ``taus`` (K,)."""
-        return self._at(np.asarray(taus, dtype=float)[:, None] + np.zeros_like(self.angle))
+    def at_times(self, taus, frames=None) -> np.ndarray:
+        """(K, n, 4, 4) poses at each of the step fractions ``taus`` (K,), of every frame or
+        of the ``frames`` given (n indices)."""
+        idx = slice(None) if frames is None else np.asarray(frames)
+        angle = self.angle[idx]
+        return self._at(np.asarray(taus, dtype=float)[:, None] + np.zeros_like(angle), idx)
 
-    def _at(self, tau) -> np.ndarray:
-        back = tau - 1.0  # (..., N)
-        X = np.broadcast_to(self.X_W1, back.shape + (4, 4)).copy()
-        X[..., :3, :3] = _rodrigues(self.axis, back * self.angle) @ self.X_W1[:, :3, :3]
-        X[..., :3, 3] = self.X_W1[:, :3, 3] + back[..., None] * self.dv
+    def _at(self, tau, idx=slice(None)) -> np.ndarray:
+        back = tau - 1.0  # (..., n)
+        X1 = self.X_W1[idx]
+        X = np.broadcast_to(X1, back.shape + (4, 4)).copy()
+        X[..., :3, :3] = _rodrigues(self.axis[idx], back * self.angle[idx]) @ X1[:, :3, :3]
+        X[..., :3, 3] = X1[:, :3, 3] + back[..., None] * self.dv[idx]
         return X
 
     def fit(self, X_CS, pieces: int = 1):

@@ -35,6 +35,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field, replace
+from itertools import chain
 
 import numpy as np
 import pybullet as p
@@ -46,7 +47,6 @@ from .solver import DEFAULT_TOLERANCES, Contact, Feature, Tolerances, time_of_im
 
 __all__ = ["BoxCCD", "CCDEvent", "CCDStats"]
 
-_SIGNS = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)], dtype=float)
 
 
 @dataclass(frozen=True)
@@ -205,9 +205,12 @@ class BoxCCD:
         radius = np.linalg.norm(X_CS[:, :3, 3], axis=1) + np.linalg.norm(half, axis=1)
         self._frames = _Frames(np.array(body, int), np.array(link, int), np.array(static, bool),
                                np.array(rewind, bool), np.array(box_frame, int), half, X_CS, radius)
-        self._frame_index = {(b, lk): i for i, (b, lk) in enumerate(zip(body, link))}
+        self._keys = [(int(b), int(lk)) for b, lk in zip(body, link)]  # plain ints for the pybullet calls
+        self._frame_index = {key: i for i, key in enumerate(self._keys)}
         self._static_pose = self._read_poses(np.flatnonzero(self._frames.static))
-        self._dynamic = np.flatnonzero(~self._frames.static)
+        self._dynamic = np.flatnonzero(~self._frames.static).tolist()
+        self._pose_template = np.tile(np.eye(4), (len(body), 1, 1))
+        self._pose_template[self._frames.static] = self._static_pose
         # A box is swept when its fastest point moves more than this in a step.
         self._sweep_reach = self.sweep_threshold * 2.0 * half.min(axis=1)
         self.stats.tracked_boxes = len(half)
@@ -249,19 +252,22 @@ class BoxCCD:
     # ------------------------------------------------------------ per step
     def _read_velocities(self, frames):
         """(F, 3) v and (F, 3) w (world, centre of mass) of the given frame indices."""
-        cid, fr = self.cid, self._frames
-        vel = [p.getBaseVelocity(int(fr.body[f]), physicsClientId=cid) if fr.link[f] == -1 else
-               p.getLinkState(int(fr.body[f]), int(fr.link[f]), computeLinkVelocity=1, physicsClientId=cid)[6:8]
-               for f in frames]
-        vel = np.asarray(vel, dtype=float).reshape(len(frames), 2, 3)
+        cid, keys = self.cid, self._keys
+        get_v, get_link = p.getBaseVelocity, p.getLinkState
+        vel = [get_v(keys[f][0], physicsClientId=cid) if keys[f][1] == -1 else
+               get_link(keys[f][0], keys[f][1], computeLinkVelocity=1, physicsClientId=cid)[6:8] for f in frames]
+        flat = chain.from_iterable(chain.from_iterable(vel))  # faster than converting nested tuples
+        vel = np.fromiter(flat, dtype=float, count=6 * len(frames)).reshape(len(frames), 2, 3)
         return vel[:, 0], vel[:, 1]
 
     def _read_poses(self, frames):
         """(F, 4, 4) centre-of-mass poses of the given frame indices."""
-        cid, fr = self.cid, self._frames
-        st = [p.getBasePositionAndOrientation(int(fr.body[f]), physicsClientId=cid) if fr.link[f] == -1 else
-              p.getLinkState(int(fr.body[f]), int(fr.link[f]), physicsClientId=cid)[:2] for f in frames]
-        X = np.tile(np.eye(4), (len(frames), 1, 1))
+        cid, keys = self.cid, self._keys
+        get_pose, get_link = p.getBasePositionAndOrientation, p.getLinkState
+        st = [get_pose(keys[f][0], physicsClientId=cid) if keys[f][1] == -1 else
+              get_link(keys[f][0], keys[f][1], physicsClientId=cid)[:2] for f in frames]
+        X = np.zeros((len(frames), 4, 4))
+        X[:, 3, 3] = 1.0
         if st:
             X[:, :3, 3] = [x[0] for x in st]
             X[:, :3, :3] = quat_to_matrix([x[1] for x in st])
@@ -319,12 +325,12 @@ class BoxCCD:
         # Poses: the fast frames, then only the partners pybullet's own broad phase
         # finds near their swept bounds (slow bodies can be anywhere within their
         # reach of the pose it knows, so the query is widened by the largest).
-        X1 = np.tile(np.eye(4), (n_frames, 1, 1))
-        X1[fr.static] = self._static_pose
+        X1 = self._pose_template.copy()  # identity, static poses filled in
         fast_boxes = np.flatnonzero(fast)
         fast_frames = set(bf[fast_boxes].tolist())
         X1[sorted(fast_frames)] = self._read_poses(sorted(fast_frames))
-        lo, hi = self._swept_bounds(StepPath(X1, v, w, dt), fast_boxes)
+        path = StepPath(X1, v, w, dt)  # rows of frames not read yet are filled below
+        lo, hi = self._swept_bounds(path, fast_boxes)
         slack = reach[~fast & ~fr.static[bf]].max(initial=0.0) + 1e-9
         near = set(fast_frames)
         for k in range(len(fast_boxes)):
@@ -333,12 +339,14 @@ class BoxCCD:
             near.update(self._frame_index[key] for key in found if key in self._frame_index)
         moving = sorted(f for f in near - fast_frames if not fr.static[f])
         if moving:
-            X1[moving] = self._read_poses(moving)
-        path = StepPath(X1, v, w, dt)
+            path.X_W1[moving] = self._read_poses(moving)
         t1 = time.perf_counter()
         st.seconds["state"] += t1 - t0
         st.swept_boxes += len(fast_boxes)
-        pairs = self._candidate_pairs(path, fast, np.flatnonzero(np.isin(bf, sorted(near))))
+        others = np.flatnonzero(np.isin(bf, sorted(near - fast_frames)))
+        lo_o, hi_o = self._swept_bounds(path, others)
+        pairs = self._candidate_pairs(fast, np.concatenate([fast_boxes, others]),
+                                      np.concatenate([lo, lo_o]), np.concatenate([hi, hi_o]))
         t2 = time.perf_counter()
         st.seconds["broad_phase"] += t2 - t1
         st.candidate_pairs += len(pairs)
@@ -351,23 +359,22 @@ class BoxCCD:
         st.seconds["rewind"] += time.perf_counter() - t3
         return events, tau
 
-    def _swept_bounds(self, path, boxes):
-        """(n, 3) lo and hi: bounds of the given boxes over the step. Exact at five poses
-        (centre +- |R| half), widened by the largest deviation of a point's arc from
-        its chords between them."""
+    def _path_boxes(self, path, boxes):
+        """(n, 42) the boxes' exact paths over the step, as the core's step-path functions take them."""
         fr = self._frames
-        frames = fr.box_frame[boxes]
-        Xb = path.at_times(np.linspace(0.0, 1.0, 5))[:, frames] @ fr.X_CS[boxes]  # (5, n, 4, 4)
-        extent = np.einsum("knij,nj->kni", np.abs(Xb[..., :3, :3]), fr.half[boxes])
-        sag = fr.radius[boxes] * (0.25 * path.angle[frames]) ** 2 / 8.0 + 1e-9
-        lo = (Xb[..., :3, 3] - extent).min(axis=0) - sag[:, None]
-        hi = (Xb[..., :3, 3] + extent).max(axis=0) + sag[:, None]
-        return lo, hi
+        f = fr.box_frame[boxes]
+        return np.concatenate([path.X_W1[f].reshape(-1, 16), path.dv[f], path.axis[f], path.angle[f, None],
+                               fr.X_CS[boxes].reshape(-1, 16), fr.half[boxes]], axis=1)
 
-    def _candidate_pairs(self, path, fast, involved):
-        """(P, 2) box index pairs among ``involved`` whose swept bounds meet, at least one fast."""
+    def _swept_bounds(self, path, boxes):
+        """(n, 3) lo and hi: bounds of the given boxes over the step (see _core.swept_bounds)."""
+        b = _core.swept_bounds(self._path_boxes(path, boxes))
+        return b[:, :3], b[:, 3:]
+
+    def _candidate_pairs(self, fast, involved, lo, hi):
+        """(P, 2) box index pairs among ``involved`` (with swept bounds ``lo``, ``hi``) whose
+        bounds meet, at least one of them fast."""
         fr = self._frames
-        lo, hi = self._swept_bounds(path, involved)
         fi = np.flatnonzero(fast[involved])
         overlap = np.all((lo[fi, None, :] <= hi[None, :, :]) & (lo[None, :, :] <= hi[fi, None, :]), axis=2)
         i, j = np.nonzero(overlap)
@@ -523,20 +530,10 @@ class BoxCCD:
             return Contact(lo, np.full(3, np.nan), np.full(3, np.nan), Feature("", "", ""), lo == 0.0)
         return c
 
-    def _path_boxes(self, path, a, b):
-        """(2, 42) the pair's exact paths, as _core.first_depth takes them."""
-        fr = self._frames
-        out = np.empty((2, 42))
-        for q, box in enumerate((a, b)):
-            f = fr.box_frame[box]
-            out[q] = np.concatenate([path.X_W1[f].ravel(), path.dv[f], path.axis[f], [path.angle[f]],
-                                     fr.X_CS[box].ravel(), fr.half[box]])
-        return out
-
     def _rewind_time(self, path, a, b, tau_first):
         """The first tau >= tau_first on Bullet's exact path at which the sharp boxes
         overlap by ``penetration`` (None if they never do in this step: a graze)."""
-        boxes = self._path_boxes(path, a, b)
+        boxes = self._path_boxes(path, [a, b])
         target = self.penetration
         if tau_first == 0.0:
             # Touching when the step began: pybullet resolved that contact, but a

@@ -190,6 +190,14 @@ nb::ndarray<nb::numpy, double, nb::shape<-1>> py_path_depth(const PathBoxes &box
     return nb::ndarray<nb::numpy, double, nb::shape<-1>>(out, {n}, owner);
 }
 
+nb::ndarray<nb::numpy, double, nb::shape<-1, 6>> py_swept_bounds(const In<-1, kPathBoxSize> &boxes) {
+    const size_t n = boxes.shape(0);
+    double *out = new double[6 * n];
+    nb::capsule owner(out, [](void *q) noexcept { delete[] static_cast<double *>(q); });
+    for (size_t i = 0; i < n; ++i) swept_bounds(boxes.data() + kPathBoxSize * i, out + 6 * i, out + 6 * i + 3);
+    return nb::ndarray<nb::numpy, double, nb::shape<-1, 6>>(out, {n, 6}, owner);
+}
+
 double py_first_depth(const PathBoxes &boxes, double tau_from, double target) {
     return first_depth(boxes.data(), boxes.data() + kPathBoxSize, tau_from, target);
 }
@@ -240,4 +248,5 @@ NB_MODULE(_core, m) {
     m.def("planes", &planes);
     m.def("path_depth", &py_path_depth, nb::arg("boxes"), nb::arg("taus"));
     m.def("first_depth", &py_first_depth, nb::arg("boxes"), nb::arg("tau_from"), nb::arg("target"));
+    m.def("swept_bounds", &py_swept_bounds, nb::arg("boxes"));
 }

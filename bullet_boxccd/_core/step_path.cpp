@@ -81,6 +81,26 @@ double path_depth(const double *box_a, const double *box_b, double tau) {
     return depth;
 }
 
+void swept_bounds(const double *box, double *lo, double *hi) {
+    const double *X_CS = box + 23, *h = box + 39;
+    const double r = std::sqrt(X_CS[3] * X_CS[3] + X_CS[7] * X_CS[7] + X_CS[11] * X_CS[11]) +
+                     std::sqrt(h[0] * h[0] + h[1] * h[1] + h[2] * h[2]);
+    const double q = 0.25 * box[22];
+    const double sag = r * q * q / 8.0 + 1e-9;
+    for (int i = 0; i < 3; ++i) {
+        lo[i] = std::numeric_limits<double>::infinity();
+        hi[i] = -lo[i];
+    }
+    for (int k = 0; k <= 4; ++k) {
+        const Pose P = box_pose(box, 0.25 * k);
+        for (int i = 0; i < 3; ++i) {
+            const double e = std::fabs(P.R[i][0]) * h[0] + std::fabs(P.R[i][1]) * h[1] + std::fabs(P.R[i][2]) * h[2];
+            lo[i] = std::fmin(lo[i], P.c[i] - e - sag);
+            hi[i] = std::fmax(hi[i], P.c[i] + e + sag);
+        }
+    }
+}
+
 double first_depth(const double *box_a, const double *box_b, double tau_from, double target) {
     const double span = 1.0 - tau_from;
     double lo = tau_from, hi = std::numeric_limits<double>::quiet_NaN();

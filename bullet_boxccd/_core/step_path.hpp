@@ -20,4 +20,10 @@ double path_depth(const double *box_a, const double *box_b, double tau);
 // bisection then brackets the crossing to 1e-15 and returns its upper end.
 double first_depth(const double *box_a, const double *box_b, double tau_from, double target);
 
+// Axis-aligned bounds of a box over the whole step: exact at tau = 0, 1/4, ...,
+// 1 (centre +- |R| half) and widened by the largest distance of a point's arc
+// from its chords between them, r (angle / 4)^2 / 8 (r: the farthest box point
+// from the frame's origin). lo and hi are (3,) each.
+void swept_bounds(const double *box, double *lo, double *hi);
+
 }  // namespace boxccd
