@@ -17,23 +17,27 @@ Per trial (numpy ``Generator`` seeded with ``--seed + trial``):
   degrees of vertical, aim point in the empty region x in [-4, -1], y in [-3, -1]),
 
 all with a random spin (each component U(-20, 20) rad/s), and a window of
-``--window`` steps (default 120, 1/240 s each, i.e. 0.5 s) is timed step by step.
+``--window`` steps (default 120, 1/240 s each, i.e. 0.5 s; at most 72 for 1000 boxes
+and more, which still holds every impact) is timed step by step.
 A projectile has tunneled if at the end of the window its centre is below the
 ground's top face (z < 0, over the ground), or if it is beyond the wall's mid-plane
 (x > 0) having crossed that plane within the wall's face (|y| <= 1, 0 <= z <= 1.5;
 checked on the segment between the centres after consecutive steps, untimed): a
 projectile that bounces off the ground and flies over or round the wall has not
-tunneled. ``tunneled/shots`` counts projectiles over all trials. Every method sees the same settled pile
-(``p.saveState``/``p.restoreState``) and the same projectiles.
+tunneled. ``tunneled/shots`` counts projectiles over all trials. Every method sees
+the same settled pile (``p.saveState``/``p.restoreState``) and the same projectiles.
 
 Methods (``fixedTimeStep`` 1/240 s per step throughout):
 
 * ``plain``: ``p.stepSimulation()`` (multibody bodies, ``numSubSteps`` 0),
 * ``plugin``: ``BoxCCD(cid).step()`` on the same world,
+* ``plugin exact_time``: ``BoxCCD(cid, exact_time=True)`` (when the installed version
+  has that option): after a contact the rest of the step is simulated from there,
 * ``substeps k`` (k = 2, 4, 8, 16): ``p.setPhysicsEngineParameter(numSubSteps=k)``,
   so one step is k solver steps of 1/(240 k) s,
 * ``plain (maximal)``: the same scene built with ``useMaximalCoordinates=True``
-  (btRigidBody instead of btMultiBody), ``p.stepSimulation()``: the baseline of
+  (btRigidBody instead of btMultiBody), ``p.stepSimulation()``, the baseline of
+  native CCD,
 * ``native CCD (maximal)``: that scene with Bullet's own CCD on the projectiles,
   ``changeDynamics(ccdSweptSphereRadius=0.025)`` (half the projectile's smallest half
   extent) and ``contactProcessingThreshold=0`` (a world of its own, built the same way,
@@ -41,11 +45,16 @@ Methods (``fixedTimeStep`` 1/240 s per step throughout):
 
 Multibody velocities are unclamped (``maxJointVelocity=10000``); no damping.
 ``us/step`` is, per trial, the mean wall time of a step over the window (it includes
-the impact steps), then the median over trials (``min`` also in the CSV); ``ratio``
-is to ``plain`` of the same N. For the plugin the per-phase seconds of
-``ccd.stats.seconds`` (pybullet's step, reading the state, broad phase, solver,
-rewind) and its counters (swept boxes, candidate pairs, solver rows, contacts,
-rewinds, held) are printed per N, summed over the trials and per step.
+the impact steps), then the median (and the min) over trials; ``x plain`` is the
+median's ratio to ``plain`` of the same N. Trials run seeds outer, methods inner, so
+a burst of load from elsewhere hits every method alike. For the plugin the per-phase
+seconds of ``ccd.stats.seconds`` (pybullet's step, reading the state, broad phase,
+solver, rewind) are printed per step, and its counters (swept boxes, candidate pairs,
+solver rows, contacts, rewinds, held) summed over the trials.
+
+Then, tunneling only, ``--extra-seeds`` more seeds (default 100) on the 10-box scene
+for plain, the plugin (both modes), substeps 8 and 16 and native CCD (the pile is off
+the projectiles' paths, so its size does not matter there).
 
 Targets printed beside the results: plugin overhead at most 30 % of a plain step at
 N = 100, and the plugin at zero tunneling cheaper than the cheapest substep count
@@ -59,14 +68,12 @@ Run
 Options: ``--seed`` (default 2024), ``--trials`` (per N up to 100 boxes, default 6;
 larger scenes get a third of them, at least 1), ``--window``, ``--sizes``, ``--csv``.
 ``--quick`` runs 2 trials (1 at 1000 boxes) of 64 steps, 20 extra seeds, and leaves
-out substeps 16 (and substeps 8 at 1000 boxes). Trials run seeds outer, methods
-inner, so a burst of load from elsewhere hits every method alike. Every tunneled
-projectile is listed in ``benchmarks/results/plugin_tunneled.csv``.
-The table is markdown and is also written to ``benchmarks/results/plugin.csv``.
-The machine has other load at times: the medians over trials are what to read.
-Then, tunneling only, ``--extra-seeds`` more seeds (default 100) on the 10-box scene
-for plain, plugin, substeps 8 and 16 and native CCD (the pile is off the projectiles'
-paths, so its size does not matter there).
+out substeps 16 (and substeps 8 and plugin exact_time at 1000 boxes).
+The tables are markdown; the first is also written to ``benchmarks/results/plugin.csv``
+(with the plugin's phases and counters), and every tunneled projectile (N, method,
+seed, projectile, final centre) to ``benchmarks/results/plugin_tunneled.csv``. The
+commit measured is printed (read-only git). The machine may carry other load: read
+the medians, compare with the mins.
 This is a benchmark, not a test: it asserts nothing about timings.
 """
 
@@ -74,10 +81,12 @@ from __future__ import annotations
 
 import argparse
 import csv
+import inspect
 import math
 import os
 import platform
 import statistics
+import subprocess
 import time
 
 import numpy as np
@@ -196,9 +205,9 @@ def run_trial(world, method, seed, window, ccds):
         if method.startswith("native"):  # a world of its own: restoreState leaves these settings alone
             p.changeDynamics(b, -1, ccdSweptSphereRadius=NATIVE_RADIUS, contactProcessingThreshold=0.0,
                              physicsClientId=cid)
-    if method == "plugin":
+    if method.startswith("plugin"):
         if (cid, method) not in ccds:
-            ccds[(cid, method)] = BoxCCD(cid)
+            ccds[(cid, method)] = BoxCCD(cid, exact_time=True) if "exact" in method else BoxCCD(cid)
         step = ccds[(cid, method)].step
     else:
         def step():
@@ -220,6 +229,19 @@ def run_trial(world, method, seed, window, ccds):
     return 1e6 * total / window, tunnel
 
 
+def _code_version():
+    """The commit of the tree that is measured, and whether bullet_boxccd differs from it (read-only git)."""
+    root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    try:
+        head = subprocess.run(["git", "-C", root, "rev-parse", "--short", "HEAD"], capture_output=True, text=True,
+                              check=True).stdout.strip()
+        dirty = subprocess.run(["git", "-C", root, "status", "--porcelain", "--", "bullet_boxccd"],
+                               capture_output=True, text=True, check=True).stdout.strip()
+    except (OSError, subprocess.CalledProcessError):
+        return "unknown (no git)"
+    return head + (" + uncommitted changes in bullet_boxccd/" if dirty else "")
+
+
 def print_table(title, header, rows):
     widths = [max(len(str(x)) for x in col) for col in zip(header, *rows)]
     print(f"\n{title}")
@@ -232,7 +254,8 @@ def print_table(title, header, rows):
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--quick", action="store_true",
-                    help="2 trials (1 at 1000 boxes), 64-step window, no substeps 16 (nor 8 at 1000 boxes)")
+                    help="2 trials (1 at 1000 boxes), 64-step window, no substeps 16 (nor 8, nor exact_time, "
+                         "at 1000 boxes)")
     ap.add_argument("--seed", type=int, default=2024)
     ap.add_argument("--trials", type=int, default=None, help="trials per N (default 6; 2 with --quick)")
     ap.add_argument("--window", type=int, default=None, help="timed steps per trial (default 120; 64 with --quick)")
@@ -245,21 +268,26 @@ def main(argv=None):
     window = args.window or (64 if args.quick else 120)
     if args.extra_seeds is None:
         args.extra_seeds = 20 if args.quick else 100
-    methods = ["plain", "plugin"] + [f"substeps {k}" for k in SUBSTEPS] + ["plain (maximal)", "native CCD (maximal)"]
+    exact = ["plugin exact_time"] if "exact_time" in inspect.signature(BoxCCD).parameters else []
+    methods = (["plain", "plugin"] + exact + [f"substeps {k}" for k in SUBSTEPS]
+               + ["plain (maximal)", "native CCD (maximal)"])
 
     print(f"machine: {platform.platform()}, {platform.processor() or platform.machine()}, "
           f"python {platform.python_version()}, pybullet API {p.getAPIVersion()}, numpy {np.__version__}")
-    print(f"seed {args.seed}, window {window} steps of 1/240 s, {N_PROJ} projectiles per trial")
+    print(f"code: {_code_version()}")
+    print(f"seed {args.seed}, window {window} steps of 1/240 s (at most 72 from 1000 boxes on), "
+          f"{N_PROJ} projectiles per trial")
 
     n_trials = {n: (trials if n <= 100 else max(1, trials // 3)) for n in args.sizes}
     def quick_skip(n):
-        return {"substeps 16"} | ({"substeps 8"} if n >= 1000 else set())
+        return {"substeps 16"} | ({"substeps 8", "plugin exact_time"} if n >= 1000 else set())
 
     bar = tqdm(total=sum(n_trials[n] * len([m for m in methods if not (args.quick and m in quick_skip(n))])
                          for n in args.sizes), desc="runs", unit="trial")
     results, phase_rows, tunnel_log = [], [], []
     for n in args.sizes:
         seeds = [args.seed + t for t in range(n_trials[n])]
+        win = window if n < 1000 else min(window, 72)  # the impacts come by step 61
         worlds = {w: build(n, w != "multibody") for w in ("multibody", "maximal", "native")}
         # Seeds outer, methods inner: a burst of load from elsewhere hits every method alike.
         ms = [m for m in methods if not (args.quick and m in quick_skip(n))]
@@ -268,7 +296,7 @@ def main(argv=None):
         for seed in seeds:
             for m in ms:
                 w = worlds[_world_of(m)]
-                us, tun = run_trial(w, m, seed, window, ccds)
+                us, tun = run_trial(w, m, seed, win, ccds)
                 st = ccds.get((w[0], m))
                 res[m] = (res[m][0] + [us], res[m][1] + len(tun), st.stats if st else None)
                 tunnel_log += [(n, m, seed) + t for t in tun]
@@ -283,17 +311,17 @@ def main(argv=None):
             med = statistics.median(us)
             row = dict(n_boxes=n, method=m, us_per_step_median=round(med, 1), us_per_step_min=round(min(us), 1),
                        ratio_to_plain=round(med / plain, 3), tunneled=nt, shots=N_PROJ * len(seeds),
-                       trials=len(seeds), window_steps=window)
+                       trials=len(seeds), window_steps=win)
             if stats is not None:
                 steps = max(stats.steps, 1)
                 for ph in PHASES:
                     row[f"plugin_{ph}_us_per_step"] = round(1e6 * stats.seconds[ph] / steps, 1)
                 for c in ("swept_boxes", "candidate_pairs", "solver_rows", "contacts", "rewinds", "held"):
                     row[f"plugin_{c}"] = getattr(stats, c)
-                phase_rows.append((n, steps, stats))
+                phase_rows.append((n, m, steps, stats))
             results.append(row)
     # Tunneling only, more seeds: the 10-box scene (the pile is off the projectiles' paths).
-    extra_methods = ["plain", "plugin", "substeps 8", "substeps 16", "native CCD (maximal)"]
+    extra_methods = ["plain", "plugin"] + exact + ["substeps 8", "substeps 16", "native CCD (maximal)"]
     extra_seeds = [args.seed + 1000 + t for t in range(args.extra_seeds)]
     extra = []
     if extra_seeds:
@@ -322,13 +350,13 @@ def main(argv=None):
                 ("boxes", "method", "us/step", "min", "x plain", "tunneled/shots"), rows)
 
     prow = []
-    for n, steps, st in phase_rows:
+    for n, m, steps, st in phase_rows:
         per = {ph: 1e6 * st.seconds[ph] / steps for ph in PHASES}
         sweep = sum(per[ph] for ph in PHASES[1:])
-        prow.append((n, steps, *(f"{per[ph]:.0f}" for ph in PHASES), f"{sweep:.0f}", st.swept_boxes,
+        prow.append((n, m, steps, *(f"{per[ph]:.0f}" for ph in PHASES), f"{sweep:.0f}", st.swept_boxes,
                      st.candidate_pairs, st.solver_rows, st.contacts, st.rewinds, st.held))
     print_table("plugin phases (us per step, mean over all trials) and counters (totals over all trials)",
-                ("boxes", "steps", "pybullet step", "state", "broad", "solve", "rewind", "sweep total",
+                ("boxes", "method", "steps", "pybullet step", "state", "broad", "solve", "rewind", "sweep total",
                  "swept", "pairs", "rows", "contacts", "rewinds", "held"), prow)
 
     if extra:
@@ -336,33 +364,39 @@ def main(argv=None):
                     ("method", "tunneled/shots", "us/step", "CCD rewinds", "held"),
                     [(m, f"{nt}/{shots_}", f"{us:.0f}", st.rewinds if st else "", st.held if st else "")
                      for m, nt, shots_, us, st in extra])
-        for m, nt, shots_, us, st in extra:
+        for m, nt, shots_, us, _st in extra:
             results.append(dict(n_boxes=10, method=f"{m} [extra seeds]", us_per_step_median=round(us, 1),
                                 tunneled=nt, shots=shots_, trials=len(extra_seeds), window_steps=window))
 
     print("\ntargets")
     by = {(r["n_boxes"], r["method"]): r for r in results}
-    if (100, "plain") in by:
-        ov = by[(100, "plugin")]["us_per_step_median"] / by[(100, "plain")]["us_per_step_median"] - 1.0
-        print(f"  plugin overhead at 100 boxes: {100 * ov:.0f} % of a plain step (target <= 30 %): "
-              f"{'met' if ov <= 0.30 else 'NOT met'}")
+    plugins = ["plugin"] + exact
+    for pm in plugins:
+        if (100, "plain") in by and (100, pm) in by:
+            ov = by[(100, pm)]["us_per_step_median"] / by[(100, "plain")]["us_per_step_median"] - 1.0
+            print(f"  {pm} overhead at 100 boxes: {100 * ov:.0f} % of a plain step (target <= 30 %): "
+                  f"{'met' if ov <= 0.30 else 'NOT met'}")
     for n in args.sizes:
-        plug = by[(n, "plugin")]
         zero = [by[(n, f"substeps {k}")] for k in SUBSTEPS
                 if (n, f"substeps {k}") in by and by[(n, f"substeps {k}")]["tunneled"] == 0]
-        if plug["tunneled"]:
-            verdict = f"plugin tunneled {plug['tunneled']}/{plug['shots']}: NOT met"
-        elif not zero:
-            verdict = (f"plugin {plug['us_per_step_median']:.0f} us at zero tunneling; no substep count up to "
-                       f"{SUBSTEPS[-1]} reaches zero: met")
-        else:
-            best = min(zero, key=lambda r: r["us_per_step_median"])
-            ok = plug["us_per_step_median"] < best["us_per_step_median"]
-            verdict = (f"plugin {plug['us_per_step_median']:.0f} us vs cheapest zero-tunneling {best['method']} "
-                       f"{best['us_per_step_median']:.0f} us: {'met' if ok else 'NOT met'}")
-        print(f"  {n} boxes, plugin at zero tunneling cheaper than substepping at zero: {verdict}")
+        for pm in plugins:
+            if (n, pm) not in by:  # --quick skips some
+                continue
+            plug = by[(n, pm)]
+            if plug["tunneled"]:
+                verdict = f"tunneled {plug['tunneled']}/{plug['shots']}: NOT met"
+            elif not zero:
+                verdict = (f"{plug['us_per_step_median']:.0f} us at zero tunneling; no substep count up to "
+                           f"{SUBSTEPS[-1]} reaches zero: met")
+            else:
+                best = min(zero, key=lambda r: r["us_per_step_median"])
+                ok = plug["us_per_step_median"] < best["us_per_step_median"]
+                verdict = (f"{plug['us_per_step_median']:.0f} us vs cheapest zero-tunneling {best['method']} "
+                           f"{best['us_per_step_median']:.0f} us: {'met' if ok else 'NOT met'}")
+            print(f"  {n} boxes, {pm} at zero tunneling cheaper than substepping at zero: {verdict}")
 
-    shown = [t for t in tunnel_log if t[1] in ("plugin", "native CCD (maximal)", "substeps 8", "substeps 16")]
+    shown = [t for t in tunnel_log if t[1].startswith("plugin") or t[1] in ("native CCD (maximal)", "substeps 8",
+                                                                               "substeps 16")]
     print("\ntunneled with plugin, native CCD, substeps 8 or 16 (boxes, method, seed, projectile, aimed at, "
           f"final centre){'' if shown else ': none'}")
     for n, m, seed, i, kind, pos in shown:

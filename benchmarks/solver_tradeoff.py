@@ -75,7 +75,6 @@ import argparse
 import csv
 import math
 import os
-import statistics
 import sys
 import time
 
