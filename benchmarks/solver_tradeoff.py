@@ -505,7 +505,7 @@ def main(argv=None):
             notes.append(f"{fname}: !! single time_of_impact answers differ from the batch answers")
         jobs = [batch_job(bargs, tol) for _, _, tol in configs] + [loop_job(time_of_impact, objs)]
         us = round_robin(jobs, repeats, f"{fname}: timing ours")
-        for (group, label, tol), t, u in zip(configs, answers, us):
+        for (group, label, _tol), t, u in zip(configs, answers, us):
             short = label.replace("gap_rel=", "g=").replace("rounding=", "r=").replace("max_steps=", "s=")
             record("ours", group, label, short, u, t)
         record("ours", "single", "default, one time_of_impact call per pair (Python loop)", "single", us[-1],
@@ -560,7 +560,8 @@ def main(argv=None):
     print()
     print("us/query: ours = one time_of_impact_batch call over all pairs of the family / pairs (median of repeats); "
           "'single' and fcl = a Python loop of single calls / pairs. Errors in range units over pairs that truly hit "
-          "and that the configuration reports hitting; late = t > t_true + 1e-12 (the column 't > t_true' counts any positive excess, the truth being good to ~1e-18); misses: truth hits, no answer; "
+          "and that the configuration reports hitting; late = t > t_true + 1e-12 (the column 't > t_true' counts any "
+          "positive excess, the truth being good to ~1e-18); misses: truth hits, no answer; "
           "false hits: truth never touches, answer a time. On rot / both, FCL follows another path between the "
           "same end poses (CCDM_TRANS ignores the spin), so its errors there are not solver error alone.")
     noisy = [r for r in rows if r["us_iqr_rel"] > 0.2]
