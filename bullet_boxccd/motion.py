@@ -263,24 +263,22 @@ class StepPath:
         X[..., :3, 3] = X1[:, :3, 3] + back[..., None] * self.dv[idx]
         return X
 
-    def fit(self, X_CS, pieces: int = 1):
+    def fit(self, X_CS, pieces: int = 1, window=(0.0, 1.0)):
         """Quadratic motions of frames rigidly attached at ``X_CS`` ((N, 4, 4), in the
-        moving frame), one per piece of the step.
+        moving frame) over ``window`` (step fractions), one per piece of it.
 
         Returns ``coeffs`` (pieces, N, 3, 4, 4), each piece on its own t in [0, 1]
-        (piece k covers tau in [k, k + 1] / pieces), and ``error`` (N,): a bound on
-        the 3x3 part's deviation from the true rotation (spectral norm) over the
-        step; a point at distance r from the centre of mass is off by at most
-        error * r. The position is linear, so it is fitted exactly.
+        (piece k covers tau in lo + (hi - lo) [k, k + 1] / pieces), and ``error`` (N,):
+        a bound on the 3x3 part's deviation from the true rotation (spectral norm);
+        a point at distance r from the centre of mass is off by at most error * r.
+        The position is linear, so it is fitted exactly.
         """
+        lo, hi = window
         X_CS = np.asarray(X_CS, dtype=float)
-        coeffs = np.empty((pieces, len(X_CS), 3, 4, 4))
-        for k in range(pieces):
-            taus = (k + np.array([0.0, 0.5, 1.0])) / pieces
-            P = np.stack([self.at(t) @ X_CS for t in taus])  # (3, N, 4, 4) at u = 0, 1/2, 1
-            c0, c1, c2 = P[0], -3 * P[0] + 4 * P[1] - P[2], 2 * P[0] - 4 * P[1] + 2 * P[2]
-            for c, bottom in ((c0, (0, 0, 0, 1)), (c1, (0, 0, 0, 0)), (c2, (0, 0, 0, 0))):
-                c[:, 3] = bottom
-            coeffs[k] = np.stack([c0, c1, c2], axis=1)
-        error = _FIT_ERROR_PER_CUBED_ANGLE * (self.angle / pieces) ** 3
-        return coeffs, error
+        taus = lo + (hi - lo) * (np.arange(pieces)[:, None] + np.array([0.0, 0.5, 1.0])) / pieces
+        P = (self.at_times(taus.ravel()) @ X_CS).reshape(pieces, 3, len(X_CS), 4, 4)
+        c0, c1, c2 = P[:, 0], -3 * P[:, 0] + 4 * P[:, 1] - P[:, 2], 2 * P[:, 0] - 4 * P[:, 1] + 2 * P[:, 2]
+        c1[..., 3, :] = 0.0
+        c2[..., 3, :] = 0.0
+        error = _FIT_ERROR_PER_CUBED_ANGLE * (self.angle * (hi - lo) / pieces) ** 3
+        return np.stack([c0, c1, c2], axis=2), error

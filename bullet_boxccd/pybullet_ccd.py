@@ -399,7 +399,7 @@ class BoxCCD:
 
         Returns a list of (box a, box b, tau_first) for the pairs that touch."""
         fr, st = self._frames, self.stats
-        boxes = np.unique(pairs)
+        boxes = np.array(sorted(set(pairs.ravel().tolist())))
         frames = fr.box_frame[boxes]
         min_half = fr.half[boxes].min(axis=1)
         # Pieces per box: powers of two until the fit error is within tolerance.
@@ -415,9 +415,9 @@ class BoxCCD:
         pb = np.array([slot[int(x)] for x in pairs[:, 1]])
         n_pair = np.maximum(pieces[pa], pieces[pb])
         first = {}  # (box a, box b) -> earliest tau over the pieces
-        for n in np.unique(n_pair):
+        for n in sorted(set(n_pair.tolist())):
             rows = np.flatnonzero(n_pair == n)
-            sel = np.unique(np.concatenate([pa[rows], pb[rows]]))
+            sel = np.array(sorted(set(pa[rows].tolist()) | set(pb[rows].tolist())))
             sub = np.full(len(boxes), -1)
             sub[sel] = np.arange(len(sel))
             coeffs, err = path.take(frames[sel]).fit(fr.X_CS[boxes[sel]], int(n))
@@ -515,20 +515,16 @@ class BoxCCD:
         on a quadratic refit of the exact path over that window, the boxes inflated by
         the refit's error bound so that the touch cannot be missed."""
         fr = self._frames
-        frames = fr.box_frame[[a, b]]
-        sub = path.take(frames)
         if hi - lo < 1e-12:
             lo = max(0.0, hi - 1e-12)
-        times = (lo, 0.5 * (lo + hi), hi)
-        X = sub.at_times(times) @ fr.X_CS[[a, b]]
-        err = 2.0 * np.sqrt(3.0) / 216.0 * (sub.angle * (hi - lo)) ** 3
-        grow = err * fr.radius[[a, b]] / np.maximum(1.0 - err, 0.5) + 1e-12 * fr.radius[[a, b]]
-        boxes = [Box.centered(fr.half[q] + grow[k]) for k, q in enumerate((a, b))]
-        motions = [QuadraticMotion.through(times, [x[k] for x in X]) for k in range(2)]
-        c = time_of_impact(boxes[0], motions[0], boxes[1], motions[1], times[::2], self.tolerances)
+        coeffs, err = path.take(fr.box_frame[[a, b]]).fit(fr.X_CS[[a, b]], 1, (lo, hi))
+        grow = err * fr.radius[[a, b]] / (1.0 - err) + 1e-12 * fr.radius[[a, b]]
+        half = fr.half[[a, b]] + grow[:, None]
+        c = time_of_impact(Box(-half[0], half[0]), QuadraticMotion(coeffs[0, 0]), Box(-half[1], half[1]),
+                           QuadraticMotion(coeffs[0, 1]), (0.0, 1.0), self.tolerances)
         if c is None:  # cannot happen for a true touch; report the window start
             return Contact(lo, np.full(3, np.nan), np.full(3, np.nan), Feature("", "", ""), lo == 0.0)
-        return c
+        return c._replace(t=lo + c.t * (hi - lo))
 
     def _rewind_time(self, path, a, b, tau_first):
         """The first tau >= tau_first on Bullet's exact path at which the sharp boxes
