@@ -173,15 +173,14 @@ struct ProjectionTable {
             for (int g = 0; g < 6; ++g) p[ax][g] = compute(ax, g);
     }
     static Projection compute(int axis, int g) {
-        const int8_t kDet = 18;
         if (axis < 3) {
             if (g >= 3) return {static_cast<int8_t>(3 * axis + (g - 3)), 1};
-            return {g == axis ? kDet : int8_t(-1), 1};
+            return {static_cast<int8_t>(g == axis ? kDet : -1), 1};
         }
         if (axis < 6) {
             const int j = axis - 3;
             if (g < 3) return {static_cast<int8_t>(9 + 3 * j + g), 1};
-            return {g - 3 == j ? int8_t(kDet + 1) : int8_t(-1), 1};
+            return {static_cast<int8_t>(g - 3 == j ? kDet + 1 : -1), 1};
         }
         const int i = (axis - 6) / 3, j = (axis - 6) % 3;
         if (g < 3) {

@@ -165,7 +165,6 @@ private:
     // regularity check needs them), the rest on first use (a pair that a
     // fixed axis keeps apart never needs them).
     // proj_[9q + 3i + l] = S[q][i][l] (see the file comment), proj_[18 + q] = det.
-    static constexpr int kDet = 18;
     mutable PVec n_[15];
     mutable Poly proj_[20];
     mutable Poly nd_[15];
@@ -174,5 +173,6 @@ private:
 };
 
 int axis_generator(int axis, int which);  // the two generators spanning an axis
+constexpr int kDet = 18;                   // proj_[kDet + q] is det A (q = 0) or det B (q = 1)
 
 }  // namespace boxccd

@@ -43,12 +43,6 @@ struct Poly {
     }
 };
 
-inline Poly operator+(const Poly &a, const Poly &b) {
-    Poly r;
-    r.deg = a.deg > b.deg ? a.deg : b.deg;
-    for (int i = 0; i <= r.deg; ++i) r.c[i] = a.c[i] + b.c[i];
-    return r;
-}
 inline Poly operator-(const Poly &a, const Poly &b) {
     Poly r;
     r.deg = a.deg > b.deg ? a.deg : b.deg;
@@ -59,13 +53,6 @@ inline Poly operator*(double k, const Poly &a) {
     Poly r;
     r.deg = a.deg;
     for (int i = 0; i <= r.deg; ++i) r.c[i] = k * a.c[i];
-    return r;
-}
-inline Poly operator*(const Poly &a, const Poly &b) {  // caller keeps a.deg + b.deg <= 6
-    Poly r;
-    r.deg = a.deg + b.deg;
-    for (int i = 0; i <= a.deg; ++i)
-        for (int j = 0; j <= b.deg; ++j) r.c[i + j] += a.c[i] * b.c[j];
     return r;
 }
 // r += k * a (k is +-1 or a half extent); avoids temporaries in the hot loops.
