@@ -62,6 +62,21 @@ class Timer:
         return 1e6 * self.seconds / max(self.steps, 1)
 
 
+def simulate(cid, ccd, steps, picture=None, camera=None, picture_at=None):
+    """Step ``steps`` times (with ``ccd.step`` if given, else plain pybullet); save a
+    picture (``camera``: snapshot's target, distance, yaw, pitch) at the first step
+    with a CCD contact, or at step ``picture_at``. Returns (CCD contacts, Timer)."""
+    timer, contacts = Timer(), 0
+    for _ in range(steps):
+        events = timer.step(ccd.step if ccd else lambda: p.stepSimulation(physicsClientId=cid))
+        contacts += len(events or [])
+        if picture and (timer.steps == picture_at if picture_at else events):
+            target, distance, yaw, pitch = camera
+            snapshot(cid, picture, target, distance, yaw=yaw, pitch=pitch)
+            picture = None
+    return contacts, timer
+
+
 def box_body(cid, half, pos, mass=1.0, orn=(0, 0, 0, 1), color=(0.8, 0.3, 0.2, 1), **dynamics):
     col = p.createCollisionShape(p.GEOM_BOX, halfExtents=half, physicsClientId=cid)
     vis = p.createVisualShape(p.GEOM_BOX, halfExtents=half, rgbaColor=color, physicsClientId=cid)

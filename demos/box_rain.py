@@ -16,7 +16,7 @@ import pybullet as p
 import pybullet_data
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from _common import Timer, box_body, print_table, snapshot  # noqa: E402
+from _common import box_body, print_table, simulate  # noqa: E402
 
 from bullet_boxccd import BoxCCD  # noqa: E402
 
@@ -42,13 +42,7 @@ def run(cid, use_ccd, n, seed, picture=None):
         p.resetBaseVelocity(b, v, rng.uniform(-30, 30, 3).tolist(), physicsClientId=cid)
         pieces.append(b)
     ccd = BoxCCD(cid) if use_ccd else None
-    timer, contacts = Timer(), 0
-    for _ in range(240):
-        events = timer.step(ccd.step if ccd else lambda: p.stepSimulation(physicsClientId=cid))
-        contacts += len(events or [])
-        if picture and timer.steps == 30:
-            snapshot(cid, picture, [0, 0, 0.05], 1.1, yaw=30, pitch=-50)
-            picture = None
+    contacts, timer = simulate(cid, ccd, 240, picture, ([0, 0, 0.05], 1.1, 30, -50), picture_at=30)
     escaped = 0
     for b in pieces:
         x, y, z = p.getBasePositionAndOrientation(b, physicsClientId=cid)[0]

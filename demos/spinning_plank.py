@@ -17,7 +17,7 @@ import numpy as np
 import pybullet as p
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from _common import Timer, box_body, print_table, snapshot  # noqa: E402
+from _common import box_body, print_table, simulate  # noqa: E402
 
 from bullet_boxccd import BoxCCD  # noqa: E402
 
@@ -30,13 +30,7 @@ def run(cid, use_ccd, phase, radius, picture=None):
     plank = box_body(cid, [0.5, 0.01, 0.1], [0, 0, 0], orn=p.getQuaternionFromEuler([0, 0, yaw]))
     p.resetBaseVelocity(plank, [0, 0, 0], [0, 0, -200.0], physicsClientId=cid)
     ccd = BoxCCD(cid) if use_ccd else None
-    timer, contacts = Timer(), 0
-    for _ in range(8):  # about one turn
-        events = timer.step(ccd.step if ccd else lambda: p.stepSimulation(physicsClientId=cid))
-        contacts += len(events or [])
-        if picture and events:
-            snapshot(cid, picture, [radius / 2, 0, 0], 1.4, yaw=20, pitch=-60)
-            picture = None
+    contacts, timer = simulate(cid, ccd, 8, picture, ([radius / 2, 0, 0], 1.4, 20, -60))  # about one turn
     spin = p.getBaseVelocity(plank, physicsClientId=cid)[1][2]
     return abs(spin + 200.0) < 1e-6, contacts, timer
 

@@ -14,7 +14,7 @@ import numpy as np
 import pybullet as p
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from _common import Timer, box_body, print_table, snapshot  # noqa: E402
+from _common import box_body, print_table, simulate  # noqa: E402
 
 from bullet_boxccd import BoxCCD  # noqa: E402
 
@@ -31,13 +31,7 @@ def scene(cid, phase, speed, thickness, spin):
 def run(cid, use_ccd, phase, speed, thickness, spin, picture=None):
     cube = scene(cid, phase, speed, thickness, spin)
     ccd = BoxCCD(cid) if use_ccd else None
-    timer, contacts = Timer(), 0
-    for _ in range(int(240 * 1.0 / speed) + 30):
-        events = timer.step(ccd.step if ccd else lambda: p.stepSimulation(physicsClientId=cid))
-        contacts += len(events or [])
-        if picture and events:
-            snapshot(cid, picture, [-0.05, 0.1, 0.05], 0.9, yaw=-50, pitch=-20)
-            picture = None
+    contacts, timer = simulate(cid, ccd, int(240 / speed) + 30, picture, ([-0.05, 0.1, 0.05], 0.9, -50, -20))
     return p.getBasePositionAndOrientation(cube, physicsClientId=cid)[0][0] > 0.0, contacts, timer
 
 

@@ -15,7 +15,7 @@ import numpy as np
 import pybullet as p
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from _common import Timer, box_body, print_table, snapshot  # noqa: E402
+from _common import box_body, print_table, simulate  # noqa: E402
 
 from bullet_boxccd import BoxCCD  # noqa: E402
 
@@ -33,13 +33,7 @@ def run(cid, use_ccd, phase, angle, picture=None):
     p.resetBaseVelocity(b, (-SPEED * d).tolist(), [0, 0, 0], physicsClientId=cid)
     momentum0 = 1.0 * np.array([SPEED, 0, 0]) + 2.0 * (-SPEED * d)
     ccd = BoxCCD(cid) if use_ccd else None
-    timer, contacts = Timer(), 0
-    for _ in range(int(gap / SPEED * 240) + 10):
-        events = timer.step(ccd.step if ccd else lambda: p.stepSimulation(physicsClientId=cid))
-        contacts += len(events or [])
-        if picture and events:
-            snapshot(cid, picture, [0, 0, 0], 0.8, yaw=0, pitch=-60)
-            picture = None
+    contacts, timer = simulate(cid, ccd, int(gap / SPEED * 240) + 10, picture, ([0, 0, 0], 0.8, 0, -60))
     va = np.array(p.getBaseVelocity(a, physicsClientId=cid)[0])
     vb = np.array(p.getBaseVelocity(b, physicsClientId=cid)[0])
     momentum = 1.0 * va + 2.0 * vb

@@ -52,3 +52,14 @@ def make_case(seed: int, family: str) -> Case:
     pose_b = _pose(rng, start_b)
     m_b = QuadraticMotion.screw(pose_b, (aim - start_b) / (t1 - t0), _unit(rng) * spin / (t1 - t0), (t0, t1))
     return Case(lo_a, hi_a, m_a.coeffs.copy(), lo_b, hi_b, m_b.coeffs.copy(), t0, t1)
+
+
+def batch_rows(n, gap_x=5.0):
+    """Arrays for time_of_impact_batch: n pairs of 2 m cubes, B static at x = gap_x
+    (1 m gaps at 3 or more apart: they never touch; 2 or less: touching)."""
+    lo, hi = -np.ones((n, 3)), np.ones((n, 3))
+    c = np.zeros((n, 3, 4, 4))
+    c[:, 0] = np.eye(4)
+    cb = c.copy()
+    cb[:, 0, 0, 3] = gap_x
+    return [lo, hi, c, lo.copy(), hi.copy(), cb]

@@ -5,7 +5,7 @@ exception and never a crash; results are bit-identical across runs."""
 from __future__ import annotations
 
 import numpy as np
-from cases import FAMILIES, make_case
+from cases import FAMILIES, batch_rows, make_case
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -82,14 +82,8 @@ def test_time_of_impact_with_extreme_values(ea, eb, t_range, half):
 @given(st.integers(0, 20), st.sampled_from(["float32", "int64", "complex128", "object", "bool"]),
        st.booleans())
 def test_batch_with_other_dtypes_and_layouts(n, dtype, fortran):
-    lo = -np.ones((n, 3))
-    hi = np.ones((n, 3))
-    c = np.zeros((n, 3, 4, 4))
-    c[:, 0] = np.eye(4)
-    cb = c.copy()
-    cb[:, 0, 0, 3] = 3.0
-    arrays = [lo, hi, c, lo, hi, cb]
-    arrays[0] = np.asfortranarray(lo).astype(dtype) if fortran else lo.astype(dtype)
+    arrays = batch_rows(n, gap_x=3.0)
+    arrays[0] = np.asfortranarray(arrays[0]).astype(dtype) if fortran else arrays[0].astype(dtype)
     out = valid_or_typed(time_of_impact_batch, *arrays)
     if out is not None:
         assert out.shape == (n,)
@@ -98,13 +92,7 @@ def test_batch_with_other_dtypes_and_layouts(n, dtype, fortran):
 @settings(max_examples=40)
 @given(st.integers(0, 8), st.lists(st.tuples(st.integers(0, 7), st.integers(0, 5), FLOATS), max_size=5))
 def test_batch_with_hostile_rows(n, pokes):
-    lo = -np.ones((n, 3))
-    hi = np.ones((n, 3))
-    c = np.zeros((n, 3, 4, 4))
-    c[:, 0] = np.eye(4)
-    cb = c.copy()
-    cb[:, 0, 0, 3] = 2.0
-    arrays = [lo, hi, c, lo.copy(), hi.copy(), cb]
+    arrays = batch_rows(n, gap_x=2.0)
     for row, which, v in pokes:
         if row < n:
             arrays[which].reshape(n, -1)[row, 0] = v
@@ -115,10 +103,7 @@ def test_batch_with_hostile_rows(n, pokes):
 
 def test_large_batch_and_empty_batch():
     n = 100_000
-    lo, hi = -np.ones((n, 3)), np.ones((n, 3))
-    c = np.zeros((n, 3, 4, 4))
-    c[:, 0] = np.eye(4)
-    cb = c.copy()
+    lo, hi, c, _, _, cb = batch_rows(n)
     cb[:, 0, 0, 3] = np.linspace(1.0, 5.0, n)
     cb[:, 1, 0, 3] = -2.0
     out = time_of_impact_batch(lo, hi, c, lo, hi, cb)

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from cases import FAMILIES, make_case
+from cases import FAMILIES, batch_rows, make_case
 
 from bullet_boxccd import (
     Box,
@@ -192,18 +192,8 @@ def test_empty_batch():
     assert out.shape == (0,)
 
 
-def good_rows(n):
-    lo = -np.ones((n, 3))
-    hi = np.ones((n, 3))
-    c = np.zeros((n, 3, 4, 4))
-    c[:, 0] = np.eye(4)
-    cb = c.copy()
-    cb[:, 0, 0, 3] = 5.0
-    return [lo, hi, c, lo.copy(), hi.copy(), cb]
-
-
 def test_batch_names_every_bad_row():
-    rows = good_rows(10)
+    rows = batch_rows(10)
     rows[0][3, 1] = 2.0  # lo >= hi
     rows[2][7, 1, 0, 0] = np.nan
     with pytest.raises(InvalidBoxError) as e:
@@ -213,7 +203,7 @@ def test_batch_names_every_bad_row():
 
 
 def test_batch_reports_a_singular_row():
-    rows = good_rows(4)
+    rows = batch_rows(4)
     rows[5][2, 1, 0, 0] = -2.0  # B's x axis scales by 1 - 2t: collapses at t = 0.5
     with pytest.raises(SingularMotionError) as e:
         time_of_impact_batch(*rows)
@@ -221,18 +211,18 @@ def test_batch_reports_a_singular_row():
 
 
 def test_batch_shapes():
-    rows = good_rows(3)
+    rows = batch_rows(3)
     rows[4] = np.ones((2, 3))
     with pytest.raises(InvalidShapeError, match="disagree on N"):
         time_of_impact_batch(*rows)
-    rows = good_rows(3)
+    rows = batch_rows(3)
     rows[2] = np.zeros((3, 4, 4))
     with pytest.raises(InvalidShapeError, match=r"coeffs_a: expected shape \(N, 3, 4, 4\), got \(3, 4, 4\)"):
         time_of_impact_batch(*rows)
 
 
 def test_batch_accepts_non_contiguous_and_other_dtypes():
-    rows = good_rows(6)
+    rows = batch_rows(6)
     rows[0] = np.asfortranarray(rows[0]).astype(np.float32)
     rows[2] = np.concatenate([rows[2], rows[2]])[::2]
     out = time_of_impact_batch(*rows)
