@@ -209,6 +209,9 @@ class BoxCCD:
         self._frame_index = {key: i for i, key in enumerate(self._keys)}
         self._static_pose = self._read_poses(np.flatnonzero(self._frames.static))
         self._dynamic = np.flatnonzero(~self._frames.static).tolist()
+        self._frame_boxes = [[] for _ in body]  # frame -> its boxes
+        for b, f in enumerate(box_frame):
+            self._frame_boxes[f].append(b)
         self._pose_template = np.tile(np.eye(4), (len(body), 1, 1))
         self._pose_template[self._frames.static] = self._static_pose
         # A box is swept when its fastest point moves more than this in a step.
@@ -270,7 +273,8 @@ class BoxCCD:
         X[:, 3, 3] = 1.0
         if st:
             X[:, :3, 3] = [x[0] for x in st]
-            X[:, :3, :3] = quat_to_matrix([x[1] for x in st])
+            to_matrix = p.getMatrixFromQuaternion  # C, row-major 3x3: cheaper than numpy for a few
+            X[:, :3, :3] = np.reshape([to_matrix(x[1], physicsClientId=cid) for x in st], (-1, 3, 3))
         return X
 
     def step(self) -> list:
@@ -343,7 +347,7 @@ class BoxCCD:
         t1 = time.perf_counter()
         st.seconds["state"] += t1 - t0
         st.swept_boxes += len(fast_boxes)
-        others = np.flatnonzero(np.isin(bf, sorted(near - fast_frames)))
+        others = np.array([b for f in sorted(near - fast_frames) for b in self._frame_boxes[f]], dtype=int)
         lo_o, hi_o = self._swept_bounds(path, others)
         pairs = self._candidate_pairs(fast, np.concatenate([fast_boxes, others]),
                                       np.concatenate([lo, lo_o]), np.concatenate([hi, hi_o]))
