@@ -142,6 +142,7 @@ class BoxCCD:
         self.penetration = float(penetration)
         self.hold_fraction = 0.01
         self.exact_time = bool(exact_time)
+        self._gravity = np.zeros(3)  # read from pybullet at every step
         self.max_partial_steps = int(max_partial_steps)
         self.self_collision_bodies = set(int(b) for b in self_collision_bodies)
         self.tolerances = tolerances
@@ -286,6 +287,7 @@ class BoxCCD:
         if params.get("numSubSteps", 0) > 1:
             raise ValueError("BoxCCD sweeps whole steps: set numSubSteps to 0 or 1 (it replaces substepping)")
         dt = params["fixedTimeStep"]
+        self._gravity = np.array([params.get(f"gravityAcceleration{c}", 0.0) for c in "XYZ"])
         events, elapsed = [], 0.0
         try:
             for _ in range(1 + (self.max_partial_steps if self.exact_time else 0)):
@@ -482,8 +484,13 @@ class BoxCCD:
             for k, f in enumerate(frames):
                 b = int(fr.body[f])
                 p.resetBasePositionAndOrientation(b, X[k, :3, 3].tolist(), quats[k].tolist(), physicsClientId=self.cid)
-                # The reset zeroes the velocity: give back the post-solve one.
-                p.resetBaseVelocity(b, v_new.get(f, path.v[f]).tolist(), path.w[f].tolist(), physicsClientId=self.cid)
+                # The reset zeroes the velocity: give back the post-solve one. In
+                # exact-time mode the rest of the step is simulated again, and it
+                # will add its gravity again: take that part out here.
+                v = v_new.get(f, path.v[f])
+                if self.exact_time:
+                    v = v - self._gravity * (1.0 - stop[f]) * dt
+                p.resetBaseVelocity(b, v.tolist(), path.w[f].tolist(), physicsClientId=self.cid)
             st.rewinds += len(frames)
         return events, tau_world
 
