@@ -9,8 +9,9 @@
    (Bullet moves the centre of mass linearly and turns it about a fixed axis:
    ``motion.StepPath``), fitted by quadratic motions (split into pieces and the
    box inflated by the fit's error bound, so the fit is conservative).
-3. Broad phase: swept bounding boxes of the fast boxes against every box
-   (vectorised); the candidate pairs go to the batch solver.
+3. Broad phase: the fast boxes' swept bounds go to pybullet's own broad phase
+   (widened by the largest reach of any slow body); the boxes it returns are
+   paired with them by swept bounds, and the pairs go to the batch solver.
 4. Rewind: for each pair that touched, the first pose on Bullet's own path at
    which the sharp boxes overlap by ``penetration`` (2e-7 m by default: Bullet's
    box-box detector makes a contact only from the touching pose on, and a vertex
@@ -46,7 +47,6 @@ from .motion import QuadraticMotion, StepPath, matrix_to_quat, quat_to_matrix
 from .solver import DEFAULT_TOLERANCES, Contact, Feature, Tolerances, time_of_impact, time_of_impact_batch
 
 __all__ = ["BoxCCD", "CCDEvent", "CCDStats"]
-
 
 
 @dataclass(frozen=True)
