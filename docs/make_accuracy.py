@@ -23,6 +23,7 @@ DOC = {
     "rotation": "Rotation over the range, both boxes spinning.",
     "near_parallel_edges": "Edges of the two boxes parallel up to a tilt (rad); contacts near the parallel edges.",
     "near_parallel_faces": "Faces parallel up to a tilt (rad): face-on-face approach.",
+    "sliding": "Face-on-face sliding: B's face on A's top plane at the given gap (box sizes), sliding in.",
     "near_singular": "A's 3x3 part squashed to eps of its size along one axis (near-singular).",
     "boundaries": "Contact exactly at an octant switch (a face turning through parallel), and "
                   "within 1e-15 of the range's ends.",

@@ -211,6 +211,24 @@ def fam_faces(n):
             yield f"{theta:.0e}", moving(-h, h, QuadraticMotion.static(), -h[::-1], h[::-1], m_b)
 
 
+def fam_sliding(n):
+    """Face-on-face sliding: B's bottom face exactly on A's top plane (gap 0), or a
+    hair above (1e-12 box sizes: inside the touching tolerance) or below, sliding
+    in from the side and turning about the shared normal."""
+    for gap in (0.0, 1e-12, -1e-12):
+        rng = np.random.default_rng(9)
+        for _ in range(n):
+            ha, hb = rng.uniform(0.3, 1.0, 3), rng.uniform(0.3, 1.0, 3)
+            z = ha[2] + hb[2] + gap
+            ang = rng.uniform(0, 2 * np.pi)
+            start = np.array([np.cos(ang), np.sin(ang), 0.0]) * 3.0
+            start[2] = z
+            aim = np.array([*rng.uniform(-0.5, 0.5, 2), z])
+            m_b = QuadraticMotion.screw(pose(rotation_matrix((0, 0, 1), rng.uniform(0, np.pi)), start), aim - start,
+                                        (0.0, 0.0, rng.uniform(-1.0, 1.0)))
+            yield f"gap {gap:+.0e}", moving(-ha, ha, QuadraticMotion.static(), -hb, hb, m_b)
+
+
 def fam_near_singular(n):
     """Motions whose 3x3 part is close to singular (a box squashed to eps of its size)."""
     for eps in (1e-3, 1e-6, 1e-9, 1e-12):
@@ -262,7 +280,7 @@ def fam_grazing(n):
 
 FAMILIES = {
     "size": fam_size, "aspect": fam_aspect, "speed": fam_speed, "rotation": fam_rotation,
-    "near_parallel_edges": fam_near_parallel, "near_parallel_faces": fam_faces,
+    "near_parallel_edges": fam_near_parallel, "near_parallel_faces": fam_faces, "sliding": fam_sliding,
     "near_singular": fam_near_singular, "boundaries": fam_boundaries, "grazing": fam_grazing,
 }
 
