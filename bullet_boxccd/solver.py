@@ -83,10 +83,13 @@ class Tolerances:
     max_steps: int = 400
 
     def __post_init__(self):
-        for name in ("gap_rel", "rounding"):
+        # Upper bounds keep the tolerances meaningful: a touching tolerance of a tenth
+        # of the boxes' size, or a rounding allowance of 1e10 eps (2e-6 relative),
+        # is already far past any use.
+        for name, top in (("gap_rel", 0.1), ("rounding", 1e10)):
             v = getattr(self, name)
-            if not (np.isfinite(v) and v >= 0.0):
-                raise InvalidInputError(f"Tolerances.{name} is {v!r}; expected a finite number >= 0")
+            if not (np.isfinite(v) and 0.0 <= v <= top):
+                raise InvalidInputError(f"Tolerances.{name} is {v!r}; expected a number in [0, {top:g}]")
         if int(self.max_steps) < 1:
             raise InvalidInputError(f"Tolerances.max_steps is {self.max_steps!r}; expected an integer >= 1")
         core = _core.Tolerances()

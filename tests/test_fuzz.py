@@ -123,3 +123,24 @@ def test_results_are_deterministic_across_runs_and_batch_sizes():
     again = time_of_impact_batch(*args)
     ones = np.array([time_of_impact_batch(*[a[i:i + 1] for a in args])[0] for i in range(len(cases))])
     assert first.tobytes() == again.tobytes() == ones.tobytes()
+
+
+@given(st.lists(FLOATS, min_size=3, max_size=3), st.lists(FLOATS, min_size=3, max_size=3),
+       st.lists(FLOATS, min_size=3, max_size=3))
+def test_motion_constructors(p, v, w):
+    for make in (lambda: QuadraticMotion.ballistic(p, v, w), lambda: QuadraticMotion.screw(np.eye(4), v, w),
+                 lambda: QuadraticMotion.static(np.diag([*p, 1.0]))):
+        m = valid_or_typed(make)
+        if m is not None:
+            assert np.all(np.isfinite(m.coeffs))
+
+
+@given(FLOATS, FLOATS, st.integers(-5, 5))
+def test_tolerances(gap_rel, rounding, max_steps):
+    from bullet_boxccd import Tolerances
+
+    tol = valid_or_typed(Tolerances, gap_rel, rounding, max_steps)
+    if tol is not None:
+        c = time_of_impact(Box.centered((0.5, 0.5, 0.5)), QuadraticMotion.static(), Box.centered((0.5, 0.5, 0.5)),
+                           QuadraticMotion.ballistic((3.0, 0, 0), (-4.0, 0, 0)), (0.0, 1.0), tol)
+        assert c is not None and c.t <= 0.5 + 1e-12  # never late, whatever the tolerances
