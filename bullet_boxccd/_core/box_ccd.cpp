@@ -281,18 +281,26 @@ Problem::Section Problem::make_section(double lo, double hi) const {
 // Computed on first use: a section that one facet keeps apart needs one axis.
 void Problem::ensure_axis(const Section &sec, int ax) const {
     if (sec.ready & (1u << ax)) return;
-    const double mid = 0.5 * (sec.lo + sec.hi);
+    if (!sec.mid_ready) {  // shared by all 15 axes
+        const double mid = 0.5 * (sec.lo + sec.hi);
+        for (int i = 0; i < 20; ++i) sec.pv_mid[i] = proj_[i](mid);
+        for (int g = 0; g < 6; ++g) {
+            sec.g_mid[g] = g_[g](mid);
+            sec.glen_mid[g] = norm3(sec.g_mid[g]);
+        }
+        sec.mid_ready = true;
+    }
     for (int g = 0; g < 6; ++g) {
         const Projection pr = kProjection.p[ax][g];
-        const double v = pr.index >= 0 ? pr.sign * proj_[pr.index](mid) : 0.0;
+        const double v = pr.index >= 0 ? pr.sign * sec.pv_mid[pr.index] : 0.0;
         sec.sig[ax][g] = static_cast<int8_t>((v > 0.0) - (v < 0.0));
     }
     const int g1 = axis_generator(ax, 0), g2 = axis_generator(ax, 1);
-    const std::array<double, 3> u = g_[g1](mid), v = g_[g2](mid);
+    const std::array<double, 3> &u = sec.g_mid[g1], &v = sec.g_mid[g2];
     const double nn = norm3({u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]});
     // Parallel edges (or a flat box) give an axis with no direction: it can
     // rank no contact (its facet has zero area).
-    sec.scale[ax] = nn > 1e-9 * norm3(u) * norm3(v) ? nn : 0.0;
+    sec.scale[ax] = nn > 1e-9 * sec.glen_mid[g1] * sec.glen_mid[g2] ? nn : 0.0;
     sec.tau[ax] = tol_.gap_rel * size_ * nn + noise_[ax];
     sec.ready |= 1u << ax;
 }
@@ -413,18 +421,27 @@ int Problem::best_facet(const Section &sec, double s) const {
 // The most separating of the 15 axes at s (unit), and its separation; 0 if none separates.
 Problem::Axis Problem::best_axis_at(double s) const {
     std::array<double, 3> gs[6];
-    for (int g = 0; g < 6; ++g) gs[g] = g_[g](s);
+    double len2[6];
+    for (int g = 0; g < 6; ++g) {
+        gs[g] = g_[g](s);
+        len2[g] = gs[g][0] * gs[g][0] + gs[g][1] * gs[g][1] + gs[g][2] * gs[g][2];
+    }
     const std::array<double, 3> ds = d_(s);
     Axis best;
     for (int ax = 0; ax < 15; ++ax) {
-        const std::array<double, 3> &a = gs[axis_generator(ax, 0)], &b = gs[axis_generator(ax, 1)];
-        std::array<double, 3> n = {a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]};
-        const double nn = norm3(n);
-        if (!(nn > 1e-9 * norm3(a) * norm3(b))) continue;
-        for (double &x : n) x /= nn;
+        const int ga = axis_generator(ax, 0), gb = axis_generator(ax, 1);
+        const std::array<double, 3> &a = gs[ga], &b = gs[gb];
+        const std::array<double, 3> n = {a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]};
+        const double nn2 = n[0] * n[0] + n[1] * n[1] + n[2] * n[2];
+        if (!(nn2 > 1e-18 * len2[ga] * len2[gb])) continue;  // parallel edges: no axis
         double gap = std::fabs(n[0] * ds[0] + n[1] * ds[1] + n[2] * ds[2]);
         for (int g = 0; g < 6; ++g) gap -= h_[g] * std::fabs(n[0] * gs[g][0] + n[1] * gs[g][1] + n[2] * gs[g][2]);
-        if (gap > best.gap) { best.gap = gap; best.u = n; }
+        if (gap <= 0.0) continue;
+        const double inv = 1.0 / std::sqrt(nn2);
+        if (gap * inv > best.gap) {
+            best.gap = gap * inv;
+            best.u = {n[0] * inv, n[1] * inv, n[2] * inv};
+        }
     }
     return best;
 }

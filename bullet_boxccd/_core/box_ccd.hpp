@@ -123,6 +123,10 @@ private:
         mutable std::array<double, 15> tau;    // touching tolerance + rounding allowance
         mutable std::array<double, 15> scale;  // |n| at mid-section to rank axes; 0: no direction
         mutable uint32_t ready = 0;            // which axes are filled
+        mutable bool mid_ready = false;        // the shared values at mid-section below
+        mutable double pv_mid[20];             // the 20 projection polynomials at mid-section
+        mutable std::array<double, 3> g_mid[6];
+        mutable double glen_mid[6];
         mutable std::array<Poly, 30> Q;        // facet polynomial minus tau: <= 0 is touching
         mutable uint32_t built = 0;            // which Q are built
     };
