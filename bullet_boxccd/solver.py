@@ -144,6 +144,9 @@ class Plane(NamedTuple):
     feature: Feature
 
 
+_new = tuple.__new__
+
+
 def _t_range(t_range) -> tuple[float, float]:
     if type(t_range) is tuple and len(t_range) == 2 and type(t_range[0]) is float and type(t_range[1]) is float:
         return t_range  # the common case, without an array round trip (values are checked by the core)
@@ -177,7 +180,8 @@ def time_of_impact(
     if r is None:
         return None
     t, initial, kind, feature_a, feature_b, point, normal = r
-    return Contact(t, point, normal, Feature(kind, feature_a, feature_b), initial)
+    # tuple.__new__ skips NamedTuple's argument handling: half the cost of building the result.
+    return _new(Contact, (t, point, normal, _new(Feature, (kind, feature_a, feature_b)), initial))
 
 
 def time_of_impact_batch(
