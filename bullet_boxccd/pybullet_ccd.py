@@ -255,14 +255,13 @@ class BoxCCD:
 
     # ------------------------------------------------------------ per step
     def _read_velocities(self, frames):
-        """(F, 3) v and (F, 3) w (world, centre of mass) of the given frame indices."""
+        """(F, 6) v and w (world, centre of mass) of the given frame indices."""
         cid, keys = self.cid, self._keys
         get_v, get_link = p.getBaseVelocity, p.getLinkState
         vel = [get_v(keys[f][0], physicsClientId=cid) if keys[f][1] == -1 else
                get_link(keys[f][0], keys[f][1], computeLinkVelocity=1, physicsClientId=cid)[6:8] for f in frames]
         flat = chain.from_iterable(chain.from_iterable(vel))  # faster than converting nested tuples
-        vel = np.fromiter(flat, dtype=float, count=6 * len(frames)).reshape(len(frames), 2, 3)
-        return vel[:, 0], vel[:, 1]
+        return np.fromiter(flat, dtype=float, count=6 * len(frames)).reshape(len(frames), 6)
 
     def _read_poses(self, frames):
         """(F, 4, 4) centre-of-mass poses of the given frame indices."""
@@ -316,14 +315,14 @@ class BoxCCD:
         n_frames = len(fr.body)
         if not len(fr.half):
             return [], 1.0
-        dynamic = self._dynamic
-        v = np.zeros((n_frames, 3))
-        w = np.zeros((n_frames, 3))
-        v[dynamic], w[dynamic] = self._read_velocities(dynamic)
+        vel = np.zeros((n_frames, 6))
+        vel[self._dynamic] = self._read_velocities(self._dynamic)
+        v, w = vel[:, :3], vel[:, 3:]
         # Fast boxes: the farthest point moves more than the threshold (Bullet
         # turns a body by at most |w| dt in a step).
         bf = fr.box_frame
-        reach = (np.linalg.norm(v, axis=1)[bf] + np.linalg.norm(w, axis=1)[bf] * fr.radius) * dt
+        speeds = np.sqrt(np.einsum("fki,fki->fk", vel.reshape(-1, 2, 3), vel.reshape(-1, 2, 3)))  # |v|, |w|
+        reach = (speeds[bf, 0] + speeds[bf, 1] * fr.radius) * dt
         fast = reach > self._sweep_reach
         if not fast.any():
             st.seconds["state"] += time.perf_counter() - t0
