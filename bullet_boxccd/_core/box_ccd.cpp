@@ -434,13 +434,14 @@ Problem::Axis Problem::best_axis_at(double s) const {
         const std::array<double, 3> n = {a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]};
         const double nn2 = n[0] * n[0] + n[1] * n[1] + n[2] * n[2];
         if (!(nn2 > 1e-18 * len2[ga] * len2[gb])) continue;  // parallel edges: no axis
+        const double nn = std::sqrt(nn2), beat = best.gap * nn;
         double gap = std::fabs(n[0] * ds[0] + n[1] * ds[1] + n[2] * ds[2]);
-        for (int g = 0; g < 6; ++g) gap -= h_[g] * std::fabs(n[0] * gs[g][0] + n[1] * gs[g][1] + n[2] * gs[g][2]);
-        if (gap <= 0.0) continue;
-        const double inv = 1.0 / std::sqrt(nn2);
-        if (gap * inv > best.gap) {
-            best.gap = gap * inv;
-            best.u = {n[0] * inv, n[1] * inv, n[2] * inv};
+        for (int g = 0; g < 6 && gap > beat; ++g)  // stop once it cannot beat the best
+            if (g != ga && g != gb)  // the axis' own generators project to zero
+                gap -= h_[g] * std::fabs(n[0] * gs[g][0] + n[1] * gs[g][1] + n[2] * gs[g][2]);
+        if (gap > beat) {
+            best.gap = gap / nn;
+            best.u = {n[0] / nn, n[1] / nn, n[2] / nn};
         }
     }
     return best;
