@@ -21,7 +21,7 @@ __all__ = ["QuadraticMotion", "rotation_matrix"]
 
 def rotation_matrix(axis, angle: float) -> np.ndarray:
     """(3, 3) rotation by ``angle`` radians about ``axis`` (Rodrigues)."""
-    k = as_float_array("axis", axis, (3,))
+    k = as_float_array("axis", axis, (3,), finite=True)
     n = np.linalg.norm(k)
     if n == 0.0:
         return np.eye(3)
@@ -33,9 +33,9 @@ def rotation_matrix(axis, angle: float) -> np.ndarray:
 def _pose(rotation=None, translation=None) -> np.ndarray:
     T = np.eye(4)
     if rotation is not None:
-        T[:3, :3] = as_float_array("rotation", rotation, (3, 3))
+        T[:3, :3] = as_float_array("rotation", rotation, (3, 3), finite=True)
     if translation is not None:
-        T[:3, 3] = as_float_array("translation", translation, (3,))
+        T[:3, 3] = as_float_array("translation", translation, (3,), finite=True)
     return T
 
 
@@ -75,8 +75,8 @@ class QuadraticMotion:
         """Fixed orientation, translation ``p + v t + a t^2 / 2`` (each (3,) float)."""
         c = np.zeros((3, 4, 4))
         c[0] = _pose(rotation, position)
-        c[1, :3, 3] = as_float_array("velocity", velocity, (3,))
-        c[2, :3, 3] = 0.5 * as_float_array("acceleration", acceleration, (3,))
+        c[1, :3, 3] = as_float_array("velocity", velocity, (3,), finite=True)
+        c[2, :3, 3] = 0.5 * as_float_array("acceleration", acceleration, (3,), finite=True)
         return cls(c)
 
     @classmethod
@@ -87,8 +87,8 @@ class QuadraticMotion:
         Sampling a rigid motion (for example a screw) at its start, middle and end
         gives the fit that the pybullet adapter uses.
         """
-        t = as_float_array("times", times, (3,))
-        P = as_float_array("poses", poses, (3, 4, 4))
+        t = as_float_array("times", times, (3,), finite=True)
+        P = as_float_array("poses", poses, (3, 4, 4), finite=True)
         if len(set(t.tolist())) != 3:
             raise _core.InvalidInputError(f"times: expected three distinct times, got {t.tolist()}")
         V = np.vander(t, 3, increasing=True)  # rows (1, t, t^2)
@@ -102,15 +102,18 @@ class QuadraticMotion:
         """Quadratic fit (through start, middle and end of ``t_range``) of the rigid motion
         that translates the pose's origin at ``velocity`` and spins it at constant
         ``angular_velocity`` (rad per unit t, world axes) about that moving origin."""
-        P0 = as_float_array("pose", pose, (4, 4))
-        v = as_float_array("velocity", velocity, (3,))
-        w = as_float_array("angular_velocity", angular_velocity, (3,))
+        P0 = as_float_array("pose", pose, (4, 4), finite=True)
+        v = as_float_array("velocity", velocity, (3,), finite=True)
+        w = as_float_array("angular_velocity", angular_velocity, (3,), finite=True)
         t0, t1 = float(t_range[0]), float(t_range[1])
         times = np.array([t0, 0.5 * (t0 + t1), t1])
         poses = []
-        for t in times:
-            dt = t - t0
-            poses.append(_pose(rotation_matrix(w, np.linalg.norm(w) * dt) @ P0[:3, :3], P0[:3, 3] + v * dt))
+        # Inputs near the top of the double range overflow here; the motion's own
+        # check then names the result (a typed error), so numpy need not warn.
+        with np.errstate(all="ignore"):
+            for t in times:
+                dt = t - t0
+                poses.append(_pose(rotation_matrix(w, np.linalg.norm(w) * dt) @ P0[:3, :3], P0[:3, 3] + v * dt))
         return cls.through(times, poses)
 
     def transformed(self, T) -> QuadraticMotion:
