@@ -51,6 +51,7 @@ __all__ = [
     "InvalidTimeRangeError",
 ]
 
+
 @dataclass(frozen=True)
 class Tolerances:
     """Every tolerance of the solver, in one frozen object.
@@ -67,11 +68,12 @@ class Tolerances:
     ----------
     gap_rel : float
         Touching tolerance relative to the boxes' world size (default 1e-12: a
-        1e-9 relative gap is a clear miss, rounding noise (~1e-16) a hit).
+        1e-9 relative gap is a clear miss, rounding noise (~1e-16) a hit); at most 0.1.
     rounding : float
         Multiple of DBL_EPSILON allowed per facet for rounding (default 64:
         the facet polynomials take about 20 dependent operations to build and
-        evaluate, and each coefficient sums up to 12 products).
+        evaluate, and each coefficient sums up to 12 products; measured, about 10x
+        what rounding actually costs: benchmarks/solver_tradeoff.py); at most 1e10.
     max_steps : int
         Cap on advancement steps per section (each passes one root of one of the
         30 facet polynomials of degree <= 6, so exact arithmetic needs at most
