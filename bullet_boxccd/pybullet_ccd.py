@@ -342,9 +342,11 @@ class BoxCCD:
             found = p.getOverlappingObjects((lo[k] - slack).tolist(), (hi[k] + slack).tolist(),
                                             physicsClientId=self.cid) or ()
             near.update(self._frame_index[key] for key in found if key in self._frame_index)
-        moving = sorted(f for f in near - fast_frames if not fr.static[f])
-        if moving:
-            path.X_W1[moving] = self._read_poses(moving)
+        # Static partners are read too: a mass-0 body can be moved by the user
+        # (a kinematic obstacle), and pybullet's broad phase already sees it there.
+        partners = sorted(near - fast_frames)
+        if partners:
+            path.X_W1[partners] = self._read_poses(partners)
         t1 = time.perf_counter()
         st.seconds["state"] += t1 - t0
         st.swept_boxes += len(fast_boxes)

@@ -313,6 +313,20 @@ def test_discovery_lists_what_is_left_to_pybullet(cid):
     assert ccd.stats.tracked_boxes == 2
 
 
+def test_static_wall_moved_by_the_user_is_seen_where_it_is(cid):
+    """A mass-0 wall teleported between steps (a kinematic obstacle): the cube is
+    stopped by the wall where it now is, not by where it was when BoxCCD started."""
+    reset(cid)
+    wall = box(cid, [0.0005, 1, 1], [5.0, 0, 0], mass=0.0)
+    cube = box(cid, [0.05] * 3, [-0.3, 0, 0])
+    p.resetBaseVelocity(cube, [100, 0, 0], [0, 0, 0], physicsClientId=cid)
+    ccd = BoxCCD(cid)
+    p.resetBasePositionAndOrientation(wall, [0.0, 0, 0], [0, 0, 0, 1], physicsClientId=cid)
+    for _ in range(20):
+        ccd.step()
+    assert com_x(cid, cube) < 0.0
+
+
 def test_filtered_pair_is_not_swept(cid):
     reset(cid)
     wall = box(cid, [0.0005, 1, 1], [0, 0, 0], mass=0.0)
