@@ -156,6 +156,8 @@ void Problem::build_facet_terms() const {
             proj_[3 * i + l] = dot<4, 2>(n_[i], g_[3 + l]);
             proj_[9 + 3 * i + l] = dot<4, 2>(n_[3 + i], g_[l]);
         }
+    for (Poly &q : proj_) trim(q);  // constant under pure translation
+    for (Poly &q : nd_) trim(q);
     terms_built_ = true;
 }
 

@@ -55,6 +55,12 @@ inline Poly operator*(double k, const Poly &a) {
     for (int i = 0; i <= r.deg; ++i) r.c[i] = k * a.c[i];
     return r;
 }
+// Lower deg past exactly-zero top coefficients (a constant 3x3 part makes the
+// cofactor terms constant): every later evaluation and root search is cheaper.
+inline void trim(Poly &p) {
+    while (p.deg > 0 && p.c[p.deg] == 0.0) --p.deg;
+}
+
 // r += k * a (k is +-1 or a half extent); avoids temporaries in the hot loops.
 inline void axpy(Poly &r, double k, const Poly &a) {
     if (a.deg > r.deg) r.deg = a.deg;
