@@ -36,8 +36,11 @@ def demo_dir() -> Path:
 
 def run_demo(name: str, args) -> None:
     script = demo_dir() / DEMOS[name][0]
-    sys.argv = [str(script), *args]
-    runpy.run_path(str(script), run_name="__main__")
+    saved, sys.argv = sys.argv, [str(script), *args]
+    try:
+        runpy.run_path(str(script), run_name="__main__")
+    finally:
+        sys.argv = saved
 
 
 def solve_case(path: str) -> None:
