@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import argparse
 import os
 import struct
 import time
@@ -9,6 +10,16 @@ import zlib
 
 import numpy as np
 import pybullet as p
+
+
+def demo_setup(doc: str, argv, **options):
+    """Parse a demo's options (``name=default``, typed by the default) and ``--out``,
+    and connect a headless pybullet. Returns (args, physics client id)."""
+    ap = argparse.ArgumentParser(description=doc)
+    for name, default in options.items():
+        ap.add_argument(f"--{name}", type=type(default), default=default)
+    ap.add_argument("--out", default="demo_output")
+    return ap.parse_args(argv), p.connect(p.DIRECT)
 
 
 def write_png(path: str, rgb: np.ndarray) -> None:

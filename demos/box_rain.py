@@ -7,7 +7,6 @@ wall, the floor or the lid. Plain pybullet loses most of them; with BoxCCD none.
 
 from __future__ import annotations
 
-import argparse
 import os
 import sys
 
@@ -16,7 +15,7 @@ import pybullet as p
 import pybullet_data
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from _common import box_body, print_table, simulate  # noqa: E402
+from _common import box_body, demo_setup, print_table, simulate  # noqa: E402
 
 from bullet_boxccd import BoxCCD  # noqa: E402
 
@@ -51,12 +50,7 @@ def run(cid, use_ccd, n, seed, picture=None):
 
 
 def main(argv=None):
-    ap = argparse.ArgumentParser(description=__doc__)
-    ap.add_argument("--pieces", type=int, default=16)
-    ap.add_argument("--runs", type=int, default=3)
-    ap.add_argument("--out", default="demo_output")
-    args = ap.parse_args(argv)
-    cid = p.connect(p.DIRECT)
+    args, cid = demo_setup(__doc__, argv, pieces=16, runs=3)
     rows, escaped = [], {}
     for use in (False, True):
         out = [run(cid, use, args.pieces, seed, os.path.join(args.out, "box_rain.png") if use and seed == 0 else None)

@@ -9,7 +9,6 @@ the cube. A pass-through: the plank's spin is unchanged after it has swept past.
 
 from __future__ import annotations
 
-import argparse
 import os
 import sys
 
@@ -17,7 +16,7 @@ import numpy as np
 import pybullet as p
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from _common import box_body, print_table, simulate  # noqa: E402
+from _common import box_body, demo_setup, print_table, simulate  # noqa: E402
 
 from bullet_boxccd import BoxCCD  # noqa: E402
 
@@ -36,11 +35,7 @@ def run(cid, use_ccd, phase, radius, picture=None):
 
 
 def main(argv=None):
-    ap = argparse.ArgumentParser(description=__doc__)
-    ap.add_argument("--phases", type=int, default=40)
-    ap.add_argument("--out", default="demo_output")
-    args = ap.parse_args(argv)
-    cid = p.connect(p.DIRECT)
+    args, cid = demo_setup(__doc__, argv, phases=40)
     rows, passed = [], {}
     for radius in (0.3, 0.45):
         for use in (False, True):

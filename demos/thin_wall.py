@@ -6,7 +6,6 @@ far side. Prints a table, asserts the outcome and saves a picture of an impact.
 
 from __future__ import annotations
 
-import argparse
 import os
 import sys
 
@@ -14,7 +13,7 @@ import numpy as np
 import pybullet as p
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from _common import box_body, print_table, simulate  # noqa: E402
+from _common import box_body, demo_setup, print_table, simulate  # noqa: E402
 
 from bullet_boxccd import BoxCCD  # noqa: E402
 
@@ -36,13 +35,7 @@ def run(cid, use_ccd, phase, speed, thickness, spin, picture=None):
 
 
 def main(argv=None):
-    ap = argparse.ArgumentParser(description=__doc__)
-    ap.add_argument("--phases", type=int, default=24)
-    ap.add_argument("--speed", type=float, default=100.0)
-    ap.add_argument("--thickness", type=float, default=0.01)
-    ap.add_argument("--out", default="demo_output")
-    args = ap.parse_args(argv)
-    cid = p.connect(p.DIRECT)
+    args, cid = demo_setup(__doc__, argv, phases=24, speed=100.0, thickness=0.01)
     rows, results = [], {}
     for use in (False, True):
         rng = np.random.default_rng(0)  # the same phases and spins for both runs

@@ -7,7 +7,6 @@ their total momentum is conserved.
 
 from __future__ import annotations
 
-import argparse
 import os
 import sys
 
@@ -15,7 +14,7 @@ import numpy as np
 import pybullet as p
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from _common import box_body, print_table, simulate  # noqa: E402
+from _common import box_body, demo_setup, print_table, simulate  # noqa: E402
 
 from bullet_boxccd import BoxCCD  # noqa: E402
 
@@ -42,11 +41,7 @@ def run(cid, use_ccd, phase, angle, picture=None):
 
 
 def main(argv=None):
-    ap = argparse.ArgumentParser(description=__doc__)
-    ap.add_argument("--phases", type=int, default=24)
-    ap.add_argument("--out", default="demo_output")
-    args = ap.parse_args(argv)
-    cid = p.connect(p.DIRECT)
+    args, cid = demo_setup(__doc__, argv, phases=24)
     rows, result = [], {}
     for angle in (0.0, np.radians(30)):
         for use in (False, True):
