@@ -208,13 +208,12 @@ class BoxCCD:
                                np.array(rewind, bool), np.array(box_frame, int), half, X_CS, radius)
         self._keys = [(int(b), int(lk)) for b, lk in zip(body, link)]  # plain ints for the pybullet calls
         self._frame_index = {key: i for i, key in enumerate(self._keys)}
-        self._static_pose = self._read_poses(np.flatnonzero(self._frames.static))
         self._dynamic = np.flatnonzero(~self._frames.static).tolist()
         self._frame_boxes = [[] for _ in body]  # frame -> its boxes
         for b, f in enumerate(box_frame):
             self._frame_boxes[f].append(b)
         self._pose_template = np.tile(np.eye(4), (len(body), 1, 1))
-        self._pose_template[self._frames.static] = self._static_pose
+        self._pose_template[self._frames.static] = self._read_poses(np.flatnonzero(self._frames.static))
         # A box is swept when its fastest point moves more than this in a step.
         self._sweep_reach = self.sweep_threshold * 2.0 * half.min(axis=1)
         self.stats.tracked_boxes = len(half)

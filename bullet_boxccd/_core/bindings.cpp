@@ -39,7 +39,7 @@ struct MotionData {
 };
 
 BoxData make_box(const Vec3 &lo, const Vec3 &hi, const std::string &name) {
-    check_box(lo.data(), hi.data(), name, "");
+    check_box(lo.data(), hi.data(), name);
     BoxData b;
     std::copy(lo.data(), lo.data() + 3, b.lo);
     std::copy(hi.data(), hi.data() + 3, b.hi);
@@ -47,7 +47,7 @@ BoxData make_box(const Vec3 &lo, const Vec3 &hi, const std::string &name) {
 }
 
 MotionData make_motion(const Coeffs &c, const std::string &name) {
-    check_motion(c.data(), name, "");
+    check_motion(c.data(), name);
     MotionData m;
     std::copy(c.data(), c.data() + 48, m.c);
     return m;
@@ -119,10 +119,10 @@ nb::ndarray<nb::numpy, double, nb::shape<-1>> solve_batch(const Vec3N &lo_a, con
             // allocation on the good path).
             const auto row = [i](const std::exception &e) { return "row " + std::to_string(i) + ": " + e.what(); };
             try {
-                check_box(a.lo, a.hi, "lo_a/hi_a", "");
-                check_box(b.lo, b.hi, "lo_b/hi_b", "");
-                check_motion(a.coeffs, "coeffs_a", "");
-                check_motion(b.coeffs, "coeffs_b", "");
+                check_box(a.lo, a.hi, "lo_a/hi_a");
+                check_box(b.lo, b.hi, "lo_b/hi_b");
+                check_motion(a.coeffs, "coeffs_a");
+                check_motion(b.coeffs, "coeffs_b");
                 Problem p(a, b, t0, t1, tol);
                 p.check_regular("coeffs_a", "coeffs_b");
                 if (!bad.empty()) continue;  // keep collecting bad rows, skip the work

@@ -43,29 +43,29 @@ bool finite_poly(const Poly &p) {
 
 }  // namespace
 
-void check_box(const double *lo, const double *hi, const std::string &name, const std::string &where) {
+void check_box(const double *lo, const double *hi, const std::string &name) {
     for (int i = 0; i < 3; ++i) {
         if (!std::isfinite(lo[i]))
-            throw NonFiniteError(where + name + ".lo[" + std::to_string(i) + "] is " + num(lo[i]) +
+            throw NonFiniteError(name + ".lo[" + std::to_string(i) + "] is " + num(lo[i]) +
                                  "; expected a finite number");
         if (!std::isfinite(hi[i]))
-            throw NonFiniteError(where + name + ".hi[" + std::to_string(i) + "] is " + num(hi[i]) +
+            throw NonFiniteError(name + ".hi[" + std::to_string(i) + "] is " + num(hi[i]) +
                                  "; expected a finite number");
     }
     for (int i = 0; i < 3; ++i)
         if (!(lo[i] < hi[i]))
-            throw BoxError(where + name + ": lo[" + std::to_string(i) + "] = " + num(lo[i]) + " >= hi[" +
+            throw BoxError(name + ": lo[" + std::to_string(i) + "] = " + num(lo[i]) + " >= hi[" +
                            std::to_string(i) + "] = " + num(hi[i]) + "; expected lo < hi on the " +
                            kAxisName[i] + " axis (a box has positive extent)");
 }
 
-void check_motion(const double *C, const std::string &name, const std::string &where) {
+void check_motion(const double *C, const std::string &name) {
     for (int k = 0; k < 3; ++k)
         for (int r = 0; r < 4; ++r)
             for (int c = 0; c < 4; ++c) {
                 const double v = coef(C, k, r, c);
                 if (!std::isfinite(v))
-                    throw NonFiniteError(where + name + ".coeffs[" + std::to_string(k) + ", " + std::to_string(r) +
+                    throw NonFiniteError(name + ".coeffs[" + std::to_string(k) + ", " + std::to_string(r) +
                                          ", " + std::to_string(c) + "] is " + num(v) + "; expected a finite number");
             }
     for (int k = 0; k < 3; ++k)
@@ -73,7 +73,7 @@ void check_motion(const double *C, const std::string &name, const std::string &w
             const double want = (k == 0 && c == 3) ? 1.0 : 0.0;
             const double v = coef(C, k, 3, c);
             if (v != want)
-                throw MotionError(where + name + ".coeffs[" + std::to_string(k) + ", 3, " + std::to_string(c) +
+                throw MotionError(name + ".coeffs[" + std::to_string(k) + ", 3, " + std::to_string(c) +
                                   "] is " + num(v) + "; expected " + num(want) +
                                   " (the bottom row of an affine motion is (0, 0, 0, 1) in coeffs[0] and zero in "
                                   "coeffs[1] and coeffs[2])");

@@ -72,10 +72,10 @@ struct BoxInput {
     const double *coeffs;  // (3, 4, 4) row-major: M(t) = C0 + C1 t + C2 t^2
 };
 
-// Argument checks shared by every entry point. `where` prefixes the message
-// (for example "row 17: "); `name` is the argument name ("a", "m_a", ...).
-void check_box(const double *lo, const double *hi, const std::string &name, const std::string &where);
-void check_motion(const double *coeffs, const std::string &name, const std::string &where);
+// Argument checks shared by every entry point; `name` starts the message
+// ("a", "coeffs_b", ...). The batch entry point prefixes "row i: " itself.
+void check_box(const double *lo, const double *hi, const std::string &name);
+void check_motion(const double *coeffs, const std::string &name);
 void check_time_range(double t0, double t1);
 
 enum class Kind : int8_t { OV = 0, VO = 1, EE = 2 };
