@@ -7,8 +7,9 @@
    ``sweep_threshold`` of its own smallest extent gets its exact within-step
    path, rebuilt from the pose after the step and the post-solve velocities
    (Bullet moves the centre of mass linearly and turns it about a fixed axis:
-   ``motion.StepPath``), fitted by quadratic motions (split into pieces and the
-   box inflated by the fit's error bound, so the fit is conservative).
+   ``_core/step_path.hpp``), fitted by quadratic motions (split into pieces and
+   the box inflated by the fit's error bound, so the fit is conservative). The
+   per-step numerics run in the core; this module reads and writes pybullet.
 3. Broad phase: the fast boxes' swept bounds go to pybullet's own broad phase
    (widened by the largest reach of any slow body); the boxes it returns are
    paired with them by swept bounds, and the pairs go to the batch solver.
@@ -43,8 +44,8 @@ import pybullet as p
 
 from . import _core
 from .geometry import Box
-from .motion import QuadraticMotion, StepPath, matrix_to_quat, quat_to_matrix
-from .solver import DEFAULT_TOLERANCES, Contact, Feature, Tolerances, time_of_impact, time_of_impact_batch
+from .motion import quat_to_matrix
+from .solver import DEFAULT_TOLERANCES, Contact, Feature, Tolerances, _to_contact
 
 __all__ = ["BoxCCD", "CCDEvent", "CCDStats"]
 
@@ -212,8 +213,14 @@ class BoxCCD:
         self._frame_boxes = [[] for _ in body]  # frame -> its boxes
         for b, f in enumerate(box_frame):
             self._frame_boxes[f].append(b)
-        self._pose_template = np.tile(np.eye(4), (len(body), 1, 1))
-        self._pose_template[self._frames.static] = self._read_poses(np.flatnonzero(self._frames.static))
+        # Per frame: position, quaternion, v, w (the core's frame state); poses
+        # are read when needed, velocities of the dynamic frames at every step.
+        self._state = np.zeros((len(body), 13))
+        self._state[:, 6] = 1.0
+        static_frames = np.flatnonzero(self._frames.static).tolist()
+        self._state[static_frames, :7] = self._read_poses(static_frames)
+        self._frame_flags = (self._frames.static.astype(np.uint8) |
+                             np.isin(self._frames.body, list(self.self_collision_bodies)).astype(np.uint8) << 1)
         # A box is swept when its fastest point moves more than this in a step.
         self._sweep_reach = self.sweep_threshold * 2.0 * half.min(axis=1)
         self.stats.tracked_boxes = len(half)
@@ -263,18 +270,13 @@ class BoxCCD:
         return np.fromiter(flat, dtype=float, count=6 * len(frames)).reshape(len(frames), 6)
 
     def _read_poses(self, frames):
-        """(F, 4, 4) centre-of-mass poses of the given frame indices."""
+        """(F, 7) centre-of-mass positions and quaternions (x, y, z, w) of the given frame indices."""
         cid, keys = self.cid, self._keys
         get_pose, get_link = p.getBasePositionAndOrientation, p.getLinkState
         st = [get_pose(keys[f][0], physicsClientId=cid) if keys[f][1] == -1 else
               get_link(keys[f][0], keys[f][1], physicsClientId=cid)[:2] for f in frames]
-        X = np.zeros((len(frames), 4, 4))
-        X[:, 3, 3] = 1.0
-        if st:
-            X[:, :3, 3] = [x[0] for x in st]
-            to_matrix = p.getMatrixFromQuaternion  # C, row-major 3x3: cheaper than numpy for a few
-            X[:, :3, :3] = np.reshape([to_matrix(x[1], physicsClientId=cid) for x in st], (-1, 3, 3))
-        return X
+        flat = chain.from_iterable(chain.from_iterable(st))
+        return np.fromiter(flat, dtype=float, count=7 * len(frames)).reshape(len(frames), 7)
 
     def step(self) -> list:
         """``p.stepSimulation()`` followed by the sweep and rewind; returns this step's contacts."""
@@ -310,165 +312,89 @@ class BoxCCD:
         return events
 
     def _sweep(self, dt, t0):
-        fr, st = self._frames, self.stats
-        n_frames = len(fr.body)
+        fr, st, S = self._frames, self.stats, self._state
         if not len(fr.half):
             return [], 1.0
-        vel = np.zeros((n_frames, 6))
-        vel[self._dynamic] = self._read_velocities(self._dynamic)
-        v, w = vel[:, :3], vel[:, 3:]
-        # Fast boxes: the farthest point moves more than the threshold (Bullet
-        # turns a body by at most |w| dt in a step).
-        bf = fr.box_frame
-        speeds = np.sqrt(np.einsum("fki,fki->fk", vel.reshape(-1, 2, 3), vel.reshape(-1, 2, 3)))  # |v|, |w|
-        reach = (speeds[bf, 0] + speeds[bf, 1] * fr.radius) * dt
-        fast = reach > self._sweep_reach
-        if not fast.any():
+        S[self._dynamic, 7:] = self._read_velocities(self._dynamic)
+        # Fast boxes: the farthest point moves more than the threshold.
+        fast, slack = _core.fast_boxes(S, dt, fr.box_frame, fr.radius, self._sweep_reach)
+        if not len(fast):
             st.seconds["state"] += time.perf_counter() - t0
             return [], 1.0
         # Poses: the fast frames, then only the partners pybullet's own broad phase
         # finds near their swept bounds (slow bodies can be anywhere within their
         # reach of the pose it knows, so the query is widened by the largest).
-        X1 = self._pose_template.copy()  # identity, static poses filled in
-        fast_boxes = np.flatnonzero(fast)
-        fast_frames = set(bf[fast_boxes].tolist())
-        X1[sorted(fast_frames)] = self._read_poses(sorted(fast_frames))
-        path = StepPath(X1, v, w, dt)  # rows of frames not read yet are filled below
-        lo, hi = self._swept_bounds(path, fast_boxes)
-        slack = reach[~fast & ~fr.static[bf]].max(initial=0.0) + 1e-9
+        fast_frames = sorted(set(fr.box_frame[fast].tolist()))
+        S[fast_frames, :7] = self._read_poses(fast_frames)
+        rows = _core.path_rows(S, dt, fast, fr.box_frame, fr.X_CS, fr.half)
         near = set(fast_frames)
-        for k in range(len(fast_boxes)):
-            found = p.getOverlappingObjects((lo[k] - slack).tolist(), (hi[k] + slack).tolist(),
-                                            physicsClientId=self.cid) or ()
+        for b in (_core.swept_bounds(rows) + _WIDEN * (slack + 1e-9)).tolist():
+            found = p.getOverlappingObjects(b[:3], b[3:], physicsClientId=self.cid) or ()
             near.update(self._frame_index[key] for key in found if key in self._frame_index)
         # Static partners are read too: a mass-0 body can be moved by the user
         # (a kinematic obstacle), and pybullet's broad phase already sees it there.
-        partners = sorted(near - fast_frames)
+        partners = sorted(near.difference(fast_frames))
         if partners:
-            path.X_W1[partners] = self._read_poses(partners)
+            S[partners, :7] = self._read_poses(partners)
         t1 = time.perf_counter()
         st.seconds["state"] += t1 - t0
-        st.swept_boxes += len(fast_boxes)
-        others = np.array([b for f in sorted(near - fast_frames) for b in self._frame_boxes[f]], dtype=int)
-        lo_o, hi_o = self._swept_bounds(path, others)
-        pairs = self._candidate_pairs(fast, np.concatenate([fast_boxes, others]),
-                                      np.concatenate([lo, lo_o]), np.concatenate([hi, hi_o]))
+        st.swept_boxes += len(fast)
+        boxes = np.array(fast.tolist() + [b for f in partners for b in self._frame_boxes[f]], dtype=np.int64)
+        if len(boxes) > len(fast):
+            rows = np.concatenate([rows, _core.path_rows(S, dt, boxes[len(fast):], fr.box_frame, fr.X_CS, fr.half)])
+        pairs = _core.candidate_pairs(rows, len(fast), fr.box_frame[boxes], fr.body, self._frame_flags)
+        if self._filtered and len(pairs):
+            pairs = pairs[[self._pair_allowed(*boxes[pr].tolist()) for pr in pairs]]
         t2 = time.perf_counter()
         st.seconds["broad_phase"] += t2 - t1
         st.candidate_pairs += len(pairs)
         if not len(pairs):
             return [], 1.0
-        hits = self._solve_pairs(path, pairs)
+        # First contact of each pair on the fitted (conservative) motions.
+        tau = _core.first_touches(rows, pairs, self.fit_tolerance, self.tolerances._core)
+        st.solver_rows += len(pairs)
+        hit = np.flatnonzero(~np.isnan(tau))
+        hits = [(i, j, t) for (i, j), t in zip(pairs[hit].tolist(), tau[hit].tolist())]
         t3 = time.perf_counter()
         st.seconds["solve"] += t3 - t2
-        events, tau = self._resolve(path, hits, dt, near)
+        events, tau_world = self._resolve(rows, boxes, hits, dt, near)
         st.seconds["rewind"] += time.perf_counter() - t3
-        return events, tau
+        return events, tau_world
 
-    def _path_boxes(self, path, boxes):
-        """(n, 42) the boxes' exact paths over the step, as the core's step-path functions take them."""
-        fr = self._frames
-        f = fr.box_frame[boxes]
-        return np.concatenate([path.X_W1[f].reshape(-1, 16), path.dv[f], path.axis[f], path.angle[f, None],
-                               fr.X_CS[boxes].reshape(-1, 16), fr.half[boxes]], axis=1)
+    def _pair_allowed(self, a, b):
+        """Not disabled by set_collision_filter_pair (boxes a, b)."""
+        fa, fb = self._frames.box_frame[[a, b]]
+        return _pair_key(self._keys[fa], self._keys[fb]) not in self._filtered
 
-    def _swept_bounds(self, path, boxes):
-        """(n, 3) lo and hi: bounds of the given boxes over the step (see _core.swept_bounds)."""
-        b = _core.swept_bounds(self._path_boxes(path, boxes))
-        return b[:, :3], b[:, 3:]
-
-    def _candidate_pairs(self, fast, involved, lo, hi):
-        """(P, 2) box index pairs among ``involved`` (with swept bounds ``lo``, ``hi``) whose
-        bounds meet, at least one of them fast."""
-        fr = self._frames
-        fi = np.flatnonzero(fast[involved])
-        overlap = np.all((lo[fi, None, :] <= hi[None, :, :]) & (lo[None, :, :] <= hi[fi, None, :]), axis=2)
-        i, j = np.nonzero(overlap)
-        a, b = involved[fi[i]], involved[j]
-        keep = (a != b) & ~(fast[b] & (b < a))  # each fast-fast pair once
-        a, b = a[keep], b[keep]
-        fa, fb = fr.box_frame[a], fr.box_frame[b]
-        body_a, body_b = fr.body[fa], fr.body[fb]
-        keep = fa != fb  # boxes of one link never collide with each other
-        same_body = body_a == body_b
-        if same_body.any():
-            allowed = np.array([int(x) in self.self_collision_bodies for x in body_a])
-            keep &= ~same_body | allowed
-        keep &= ~(fr.static[fa] & fr.static[fb])
-        if self._filtered:
-            keep &= np.array([_pair_key((int(body_a[k]), int(fr.link[fa[k]])), (int(body_b[k]), int(fr.link[fb[k]])))
-                              not in self._filtered for k in range(len(a))], dtype=bool)
-        return np.stack([a[keep], b[keep]], axis=1)
-
-    def _solve_pairs(self, path, pairs):
-        """First contact of each candidate pair on the fitted (conservative) motion.
-
-        Returns a list of (box a, box b, tau_first) for the pairs that touch."""
-        fr, st = self._frames, self.stats
-        boxes = np.array(sorted(set(pairs.ravel().tolist())))
-        frames = fr.box_frame[boxes]
-        min_half = fr.half[boxes].min(axis=1)
-        # Pieces per box: powers of two until the fit error is within tolerance.
-        err1 = 2.0 * np.sqrt(3.0) / 216.0 * path.angle[frames] ** 3 * fr.radius[boxes]
-        pieces = np.ones(len(boxes), int)
-        while True:
-            over = err1 / pieces**3 > self.fit_tolerance * min_half
-            if not over.any() or pieces.max() >= 64:
-                break
-            pieces[over] *= 2
-        slot = {int(b): k for k, b in enumerate(boxes)}
-        pa = np.array([slot[int(x)] for x in pairs[:, 0]])
-        pb = np.array([slot[int(x)] for x in pairs[:, 1]])
-        n_pair = np.maximum(pieces[pa], pieces[pb])
-        first = {}  # (box a, box b) -> earliest tau over the pieces
-        for n in sorted(set(n_pair.tolist())):
-            rows = np.flatnonzero(n_pair == n)
-            sel = np.array(sorted(set(pa[rows].tolist()) | set(pb[rows].tolist())))
-            sub = np.full(len(boxes), -1)
-            sub[sel] = np.arange(len(sel))
-            coeffs, err = path.take(frames[sel]).fit(fr.X_CS[boxes[sel]], int(n))
-            # Inflate by the fit's reach: a point at distance r is off by err * r,
-            # and a ball fits in the sheared box once scaled by 1 / (1 - err)
-            # (err < 0.5: Bullet turns a body by less than pi in a step).
-            grow = err * fr.radius[boxes[sel]] / (1.0 - err)
-            half = fr.half[boxes[sel]] + grow[:, None]
-            ia, ib = sub[pa[rows]], sub[pb[rows]]
-            for k in range(int(n)):
-                t = time_of_impact_batch(-half[ia], half[ia], coeffs[k, ia], -half[ib], half[ib], coeffs[k, ib],
-                                         (0.0, 1.0), self.tolerances)
-                st.solver_rows += len(rows)
-                for r in np.flatnonzero(~np.isnan(t)):
-                    key = (int(boxes[sel[ia[r]]]), int(boxes[sel[ib[r]]]))
-                    first[key] = min(first.get(key, np.inf), (k + t[r]) / n)
-        return [(a, b, tau) for (a, b), tau in first.items()]
-
-    def _resolve(self, path, hits, dt, known):
+    def _resolve(self, rows, boxes, hits, dt, known):
         """Events and rewinds: each free body goes to its earliest rewind time.
-        ``known``: the frames whose poses were read this step (the others are read
-        here if exact-time mode stops them too)."""
-        fr, st = self._frames, self.stats
+        ``rows`` are the path rows of ``boxes``; ``hits`` (row a, row b, first
+        touch); ``known``: the frames whose poses were read this step (the others
+        are read here if exact-time mode stops them too)."""
+        fr, st, S = self._frames, self.stats, self._state
         stop = {}
         found = []
-        for a, b, tau in sorted(hits, key=lambda h: h[2]):
-            tau_b = self._rewind_time(path, a, b, tau)
+        for i, j, tau in sorted(hits, key=lambda h: h[2]):
+            pair = rows[[i, j]]
+            tau_b = self._rewind_time(pair, boxes[[i, j]], tau)
             if tau == 0.0 and tau_b is None:
                 continue  # touching at the start and not deepening: pybullet's own contact
-            found.append((a, b, tau, tau_b))
+            fa, fb = fr.box_frame[boxes[[i, j]]].tolist()
+            found.append((pair, fa, fb, tau, tau_b))
             if tau_b is None:
                 continue
-            for f in fr.box_frame[[a, b]]:
-                if fr.rewindable[f] and tau_b < stop.get(int(f), np.inf):
-                    stop[int(f)] = tau_b
+            for f in (fa, fb):
+                if fr.rewindable[f] and tau_b < stop.get(f, np.inf):
+                    stop[f] = tau_b
         events = []
         v_new = {}
-        for a, b, tau, tau_b in found:
-            fa, fb = int(fr.box_frame[a]), int(fr.box_frame[b])
-            c = self._contact(path, a, b, tau, 1.0 if tau_b is None else tau_b)
+        for pair, fa, fb, tau, tau_b in found:
+            c = self._contact(pair, tau, 1.0 if tau_b is None else tau_b)
             rewound = tau_b is not None and tau_b in (stop.get(fa), stop.get(fb))
             if rewound and tau == 0.0 and tau_b < self.hold_fraction:
-                self._release_held(path, fa, fb, c.normal, v_new)
-            events.append(CCDEvent(int(fr.body[fa]), int(fr.link[fa]), int(fr.body[fb]), int(fr.link[fb]),
-                                   c.t, c.t * dt, c.point, c.normal, c.feature, rewound, tau == 0.0))
+                self._release_held(fa, fb, c.normal, v_new)
+            events.append(CCDEvent(*self._keys[fa], *self._keys[fb], c.t, c.t * dt, c.point, c.normal, c.feature,
+                                   rewound, tau == 0.0))
         st.contacts += len(events)
         tau_world = min(stop.values(), default=1.0)
         if self.exact_time and stop:
@@ -476,25 +402,24 @@ class BoxCCD:
             stop = {int(f): tau_world for f in np.flatnonzero(fr.rewindable)}
             unread = sorted(set(stop) - set(known))
             if unread:
-                path.X_W1[unread] = self._read_poses(unread)
+                S[unread, :7] = self._read_poses(unread)
         if stop:
-            frames = np.array(sorted(stop))
-            X = path.take(frames).at(np.array([stop[f] for f in frames]))
-            quats = matrix_to_quat(X[:, :3, :3])
-            for k, f in enumerate(frames):
-                b = int(fr.body[f])
-                p.resetBasePositionAndOrientation(b, X[k, :3, 3].tolist(), quats[k].tolist(), physicsClientId=self.cid)
+            frames = sorted(stop)
+            poses = _core.frame_poses(S, dt, np.array(frames, dtype=np.int64), np.array([stop[f] for f in frames]))
+            for f, pose in zip(frames, poses.tolist()):
+                b = self._keys[f][0]
+                p.resetBasePositionAndOrientation(b, pose[:3], pose[3:], physicsClientId=self.cid)
                 # The reset zeroes the velocity: give back the post-solve one. In
                 # exact-time mode the rest of the step is simulated again, and it
                 # will add its gravity again: take that part out here.
-                v = v_new.get(f, path.v[f])
+                v = v_new.get(f, S[f, 7:10])
                 if self.exact_time:
                     v = v - self._gravity * (1.0 - stop[f]) * dt
-                p.resetBaseVelocity(b, v.tolist(), path.w[f].tolist(), physicsClientId=self.cid)
+                p.resetBaseVelocity(b, v.tolist(), S[f, 10:13].tolist(), physicsClientId=self.cid)
             st.rewinds += len(frames)
         return events, tau_world
 
-    def _release_held(self, path, fa, fb, normal, v_new):
+    def _release_held(self, fa, fb, normal, v_new):
         """A contact pybullet left unresolved: the pair touched when the step began and
         still presses in almost at once (a fast-spinning body pivoting on a vertex,
         whose contact point pybullet saw separating). Held in place it would stay
@@ -506,10 +431,10 @@ class BoxCCD:
             return
         m, e, v = [], 1.0, []
         for f in (fa, fb):
-            info = p.getDynamicsInfo(int(fr.body[f]), int(fr.link[f]), physicsClientId=cid)
+            info = p.getDynamicsInfo(*self._keys[f], physicsClientId=cid)
             m.append(info[0] if fr.rewindable[f] else np.inf)
             e *= info[5]
-            v.append(v_new.get(f, path.v[f]))
+            v.append(v_new.get(f, self._state[f, 7:10]))
         approach = float(np.dot(v[1] - v[0], normal))  # < 0: B moves towards A
         if approach >= 0.0 or not (np.isfinite(m[0]) or np.isfinite(m[1])):
             return
@@ -521,36 +446,33 @@ class BoxCCD:
             v_new[fb] = v[1] - (1.0 - w_a) * dv
         self.stats.held += 1
 
-    def _contact(self, path, a, b, lo, hi):
-        """The first touch of a pair known to touch in [lo, hi] (step fractions): one solve
-        on a quadratic refit of the exact path over that window, the boxes inflated by
-        the refit's error bound so that the touch cannot be missed."""
-        fr = self._frames
-        if hi - lo < 1e-12:
-            lo = max(0.0, hi - 1e-12)
-        coeffs, err = path.take(fr.box_frame[[a, b]]).fit(fr.X_CS[[a, b]], 1, (lo, hi))
-        grow = err * fr.radius[[a, b]] / (1.0 - err) + 1e-12 * fr.radius[[a, b]]
-        half = fr.half[[a, b]] + grow[:, None]
-        c = time_of_impact(Box(-half[0], half[0]), QuadraticMotion(coeffs[0, 0]), Box(-half[1], half[1]),
-                           QuadraticMotion(coeffs[0, 1]), (0.0, 1.0), self.tolerances)
-        if c is None:  # cannot happen for a true touch; report the window start
+    def _contact(self, pair, lo, hi):
+        """The first touch of a pair (path rows) known to touch in [lo, hi] (step
+        fractions): one solve on a quadratic refit of the exact path over that
+        window, the boxes inflated by the refit's error bound so that the touch
+        cannot be missed."""
+        r = _core.path_contact(pair, lo, hi, self.tolerances._core)
+        if r is None:  # cannot happen for a true touch; report the window start
             return Contact(lo, np.full(3, np.nan), np.full(3, np.nan), Feature("", "", ""), lo == 0.0)
-        return c._replace(t=lo + c.t * (hi - lo))
+        return _to_contact(r)
 
-    def _rewind_time(self, path, a, b, tau_first):
+    def _rewind_time(self, pair, boxes, tau_first):
         """The first tau >= tau_first on Bullet's exact path at which the sharp boxes
-        overlap by ``penetration`` (None if they never do in this step: a graze)."""
-        boxes = self._path_boxes(path, [a, b])
+        (path rows ``pair`` of ``boxes``) overlap by ``penetration`` (None if they
+        never do in this step: a graze)."""
         target = self.penetration
         if tau_first == 0.0:
             # Touching when the step began: pybullet resolved that contact, but a
             # spinning body can still curve into its partner. Let the overlap grow
             # to a quarter of the thinner box before stepping in, so that pybullet's
             # penetration recovery acts on it; past that, hold it where it is.
-            d0 = float(_core.path_depth(boxes, np.zeros(1))[0])
-            target = max(d0 + self.penetration, 0.5 * self._frames.half[[a, b]].min())
-        tau = _core.first_depth(boxes, tau_first, target)
+            d0 = float(_core.path_depth(pair, np.zeros(1))[0])
+            target = max(d0 + self.penetration, 0.5 * self._frames.half[boxes].min())
+        tau = _core.first_depth(pair, tau_first, target)
         return None if np.isnan(tau) else float(tau)
+
+
+_WIDEN = np.array([-1.0, -1.0, -1.0, 1.0, 1.0, 1.0])  # lo, hi bounds widened by a scalar
 
 
 def _shifted(e: CCDEvent, elapsed: float, dt: float) -> CCDEvent:

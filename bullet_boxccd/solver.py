@@ -179,8 +179,11 @@ def time_of_impact(
     """
     t0, t1 = _t_range(t_range)
     r = _core.solve(*_pair_args(a, m_a, b, m_b), t0, t1, tolerances._core)
-    if r is None:
-        return None
+    return None if r is None else _to_contact(r)
+
+
+def _to_contact(r) -> Contact:
+    """A Contact from the core's (t, initial, kind, feature of A, feature of B, point, normal)."""
     t, initial, kind, feature_a, feature_b, point, normal = r
     # tuple.__new__ skips NamedTuple's argument handling: half the cost of building the result.
     return _new(Contact, (t, point, normal, _new(Feature, (kind, feature_a, feature_b)), initial))

@@ -10,8 +10,8 @@ import pybullet as p
 import pybullet_data
 import pytest
 
-from bullet_boxccd import BoxCCD
-from bullet_boxccd.motion import StepPath, quat_to_matrix
+from bullet_boxccd import BoxCCD, _core
+from bullet_boxccd.motion import quat_to_matrix
 
 DT = 1 / 240
 
@@ -74,11 +74,10 @@ def test_step_path_reproduces_bullets_integration(cid):
         p.stepSimulation(physicsClientId=cid)
         pos1, q1 = p.getBasePositionAndOrientation(b, physicsClientId=cid)
         v1, w1 = p.getBaseVelocity(b, physicsClientId=cid)
-        X1 = np.eye(4)
-        X1[:3, :3], X1[:3, 3] = quat_to_matrix(q1), pos1
-        X0 = StepPath(X1[None], np.array([v1]), np.array([w1]), DT).at(0.0)[0]
-        np.testing.assert_allclose(X0[:3, 3], pos0, atol=1e-12)
-        np.testing.assert_allclose(X0[:3, :3], quat_to_matrix(q0), atol=1e-9)
+        state = np.array([[*pos1, *q1, *v1, *w1]])
+        X0 = _core.frame_poses(state, DT, np.zeros(1, dtype=np.int64), np.zeros(1))[0]
+        np.testing.assert_allclose(X0[:3], pos0, atol=1e-12)
+        np.testing.assert_allclose(quat_to_matrix(X0[3:]), quat_to_matrix(q0), atol=1e-9)
 
 
 # ------------------------------------------------------------- 1. thin walls

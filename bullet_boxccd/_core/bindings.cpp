@@ -180,26 +180,138 @@ nb::tuple planes(const BoxData &a, const MotionData &m_a, const BoxData &b, cons
                           nb::ndarray<nb::numpy, double, nb::shape<30>>(off, {30}, own_o), features);
 }
 
+// ---------------------------------------------------------------- step paths
+// The pybullet plugin's per-step work (see step_path.hpp). Indices come from
+// the plugin's own tables; they are still checked, so a bad one raises
+// IndexError instead of reading out of bounds.
 using PathBoxes = In<2, kPathBoxSize>;
+using PathRows = In<-1, kPathBoxSize>;
+using States = In<-1, kFrameStateSize>;
+template <long... Shape>
+using Index = nb::ndarray<const int64_t, nb::shape<Shape...>, nb::c_contig, nb::device::cpu>;
+template <class T, long... Shape>
+using Out = nb::ndarray<nb::numpy, T, nb::shape<Shape...>>;
 
-nb::ndarray<nb::numpy, double, nb::shape<-1>> py_path_depth(const PathBoxes &boxes, const In<-1> &taus) {
-    const size_t n = taus.shape(0);
-    double *out = new double[n];
-    nb::capsule owner(out, [](void *q) noexcept { delete[] static_cast<double *>(q); });
-    for (size_t i = 0; i < n; ++i) out[i] = path_depth(boxes.data(), boxes.data() + kPathBoxSize, taus.data()[i]);
-    return nb::ndarray<nb::numpy, double, nb::shape<-1>>(out, {n}, owner);
+// A new array of n * width elements owned by the returned capsule.
+template <class T>
+std::pair<T *, nb::capsule> new_buffer(size_t n) {
+    T *d = new T[n ? n : 1];
+    return {d, nb::capsule(d, [](void *q) noexcept { delete[] static_cast<T *>(q); })};
 }
 
-nb::ndarray<nb::numpy, double, nb::shape<-1, 6>> py_swept_bounds(const In<-1, kPathBoxSize> &boxes) {
+void check_index(int64_t i, size_t n, const char *what) {
+    if (i < 0 || size_t(i) >= n)
+        throw nb::index_error((std::string(what) + " index " + std::to_string(i) + " out of range").c_str());
+}
+
+Out<double, -1> py_path_depth(const PathBoxes &boxes, const In<-1> &taus) {
+    const size_t n = taus.shape(0);
+    auto [out, owner] = new_buffer<double>(n);
+    for (size_t i = 0; i < n; ++i) out[i] = path_depth(boxes.data(), boxes.data() + kPathBoxSize, taus.data()[i]);
+    return Out<double, -1>(out, {n}, owner);
+}
+
+Out<double, -1, 6> py_swept_bounds(const PathRows &boxes) {
     const size_t n = boxes.shape(0);
-    double *out = new double[6 * n];
-    nb::capsule owner(out, [](void *q) noexcept { delete[] static_cast<double *>(q); });
+    auto [out, owner] = new_buffer<double>(6 * n);
     for (size_t i = 0; i < n; ++i) swept_bounds(boxes.data() + kPathBoxSize * i, out + 6 * i, out + 6 * i + 3);
-    return nb::ndarray<nb::numpy, double, nb::shape<-1, 6>>(out, {n, 6}, owner);
+    return Out<double, -1, 6>(out, {n, 6}, owner);
 }
 
 double py_first_depth(const PathBoxes &boxes, double tau_from, double target) {
     return first_depth(boxes.data(), boxes.data() + kPathBoxSize, tau_from, target);
+}
+
+// (indices of the boxes whose reach exceeds sweep_reach, the largest reach of the others).
+nb::tuple py_fast_boxes(const States &state, double dt, const Index<-1> &box_frame, const In<-1> &radius,
+                        const In<-1> &sweep_reach) {
+    const size_t n = box_frame.shape(0);
+    if (radius.shape(0) != n || sweep_reach.shape(0) != n) throw nb::value_error("box tables differ in length");
+    auto [out, owner] = new_buffer<int64_t>(n);
+    size_t k = 0;
+    double slack = 0.0;
+    for (size_t i = 0; i < n; ++i) {
+        const int64_t f = box_frame.data()[i];
+        check_index(f, state.shape(0), "frame");
+        const double r = step_reach(state.data() + kFrameStateSize * f, dt, radius.data()[i]);
+        if (!std::isfinite(r)) continue;  // a broken body (pybullet's NaN) is left to pybullet
+        if (r > sweep_reach.data()[i]) out[k++] = int64_t(i);
+        else slack = std::fmax(slack, r);
+    }
+    return nb::make_tuple(Out<int64_t, -1>(out, {k}, owner), slack);
+}
+
+Out<double, -1, kPathBoxSize> py_path_rows(const States &state, double dt, const Index<-1> &boxes,
+                                          const Index<-1> &box_frame, const In<-1, 4, 4> &X_CS,
+                                          const In<-1, 3> &half) {
+    const size_t n = boxes.shape(0), nb_ = box_frame.shape(0);
+    if (X_CS.shape(0) != nb_ || half.shape(0) != nb_) throw nb::value_error("box tables differ in length");
+    auto [out, owner] = new_buffer<double>(kPathBoxSize * n);
+    for (size_t i = 0; i < n; ++i) {
+        const int64_t b = boxes.data()[i];
+        check_index(b, nb_, "box");
+        const int64_t f = box_frame.data()[b];
+        check_index(f, state.shape(0), "frame");
+        path_row(state.data() + kFrameStateSize * f, dt, X_CS.data() + 16 * b, half.data() + 3 * b,
+                 out + kPathBoxSize * i);
+    }
+    return Out<double, -1, kPathBoxSize>(out, {n, size_t(kPathBoxSize)}, owner);
+}
+
+Out<double, -1, 7> py_frame_poses(const States &state, double dt, const Index<-1> &frames, const In<-1> &taus) {
+    const size_t n = frames.shape(0);
+    if (taus.shape(0) != n) throw nb::value_error("frames and taus differ in length");
+    auto [out, owner] = new_buffer<double>(7 * n);
+    for (size_t i = 0; i < n; ++i) {
+        check_index(frames.data()[i], state.shape(0), "frame");
+        frame_pose(state.data() + kFrameStateSize * frames.data()[i], dt, taus.data()[i], out + 7 * i);
+    }
+    return Out<double, -1, 7>(out, {n, 7}, owner);
+}
+
+Out<int64_t, -1, 2> py_candidate_pairs(const PathRows &rows, int64_t n_fast, const Index<-1> &frame,
+                                       const Index<-1> &frame_body, const nb::ndarray<const uint8_t, nb::shape<-1>,
+                                       nb::c_contig, nb::device::cpu> &frame_flags) {
+    const int64_t n = int64_t(rows.shape(0));
+    if (frame.shape(0) != size_t(n) || n_fast < 0 || n_fast > n) throw nb::value_error("bad row counts");
+    if (frame_flags.shape(0) != frame_body.shape(0)) throw nb::value_error("frame tables differ in length");
+    for (int64_t i = 0; i < n; ++i) check_index(frame.data()[i], frame_body.shape(0), "frame");
+    const auto pairs = candidate_pairs(rows.data(), n, n_fast, frame.data(), frame_body.data(), frame_flags.data());
+    auto [out, owner] = new_buffer<int64_t>(2 * pairs.size());
+    for (size_t k = 0; k < pairs.size(); ++k) {
+        out[2 * k] = pairs[k].first;
+        out[2 * k + 1] = pairs[k].second;
+    }
+    return Out<int64_t, -1, 2>(out, {pairs.size(), 2}, owner);
+}
+
+Out<double, -1> py_first_touches(const PathRows &rows, const Index<-1, 2> &pairs, double fit_tolerance,
+                                 const Tolerances &tol) {
+    const size_t n = pairs.shape(0);
+    for (size_t k = 0; k < 2 * n; ++k) check_index(pairs.data()[k], rows.shape(0), "row");
+    auto [out, owner] = new_buffer<double>(n);
+    {
+        nb::gil_scoped_release release;
+        for (size_t k = 0; k < n; ++k)
+            out[k] = first_touch(rows.data() + kPathBoxSize * pairs.data()[2 * k],
+                                 rows.data() + kPathBoxSize * pairs.data()[2 * k + 1], fit_tolerance, tol);
+    }
+    return Out<double, -1>(out, {n}, owner);
+}
+
+// (coeffs (3, 4, 4), error bound) of one box's path over [lo, hi].
+nb::tuple py_fit_path(const In<kPathBoxSize> &box, double lo, double hi) {
+    auto [out, owner] = new_buffer<double>(48);
+    const double err = fit_path(box.data(), lo, hi, out);
+    return nb::make_tuple(Out<double, 3, 4, 4>(out, {3, 4, 4}, owner), err);
+}
+
+// Like solve: (t, initial, kind, feature of A, feature of B, point, normal) or None.
+nb::object py_path_contact(const PathBoxes &boxes, double lo, double hi, const Tolerances &tol) {
+    const Hit h = path_contact(boxes.data(), boxes.data() + kPathBoxSize, lo, hi, tol);
+    if (!h.hit) return nb::none();
+    return nb::make_tuple(h.t, h.initial, facet_kind(h.facet), feature_name(h.feat_a), feature_name(h.feat_b),
+                          vec3(h.point), vec3(h.normal));
 }
 
 }  // namespace
@@ -249,4 +361,15 @@ NB_MODULE(_core, m) {
     m.def("path_depth", &py_path_depth, nb::arg("boxes"), nb::arg("taus"));
     m.def("first_depth", &py_first_depth, nb::arg("boxes"), nb::arg("tau_from"), nb::arg("target"));
     m.def("swept_bounds", &py_swept_bounds, nb::arg("boxes"));
+    m.def("fast_boxes", &py_fast_boxes, nb::arg("state"), nb::arg("dt"), nb::arg("box_frame"), nb::arg("radius"),
+          nb::arg("sweep_reach"));
+    m.def("path_rows", &py_path_rows, nb::arg("state"), nb::arg("dt"), nb::arg("boxes"), nb::arg("box_frame"),
+          nb::arg("X_CS"), nb::arg("half"));
+    m.def("frame_poses", &py_frame_poses, nb::arg("state"), nb::arg("dt"), nb::arg("frames"), nb::arg("taus"));
+    m.def("candidate_pairs", &py_candidate_pairs, nb::arg("rows"), nb::arg("n_fast"), nb::arg("frame"),
+          nb::arg("frame_body"), nb::arg("frame_flags"));
+    m.def("fit_path", &py_fit_path, nb::arg("box"), nb::arg("lo"), nb::arg("hi"));
+    m.def("first_touches", &py_first_touches, nb::arg("rows"), nb::arg("pairs"), nb::arg("fit_tolerance"),
+          nb::arg("tolerances"));
+    m.def("path_contact", &py_path_contact, nb::arg("boxes"), nb::arg("lo"), nb::arg("hi"), nb::arg("tolerances"));
 }

@@ -1,11 +1,28 @@
 #include "step_path.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 
 namespace boxccd {
 
 namespace {
+
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+constexpr double kPi = 3.14159265358979323846;
+constexpr double kAngularMotionThreshold = 0.25 * kPi;  // Bullet's clamp
+// Quadratic interpolation through tau = 0, 1/2, 1 of sin(phi tau) or
+// 1 - cos(phi tau) errs by at most phi^3 / 6 * max |tau (tau - 1/2)(tau - 1)|
+// = phi^3 sqrt(3) / 216 each; a rotation is I + sin K + (1 - cos) K^2 with
+// |K| = |K^2| = 1, so the 3x3 part errs by at most twice that.
+constexpr double kFitErrorPerCubedAngle = 2.0 * 1.7320508075688772 / 216.0;
+
+// Farthest point of the box from its frame's origin.
+double reach_radius(const double *box) {
+    const double *X_CS = box + 23, *h = box + 39;
+    return std::sqrt(X_CS[3] * X_CS[3] + X_CS[7] * X_CS[7] + X_CS[11] * X_CS[11]) +
+           std::sqrt(h[0] * h[0] + h[1] * h[1] + h[2] * h[2]);
+}
 
 struct Pose {
     double R[3][3];  // box axes as columns, world
@@ -82,9 +99,8 @@ double path_depth(const double *box_a, const double *box_b, double tau) {
 }
 
 void swept_bounds(const double *box, double *lo, double *hi) {
-    const double *X_CS = box + 23, *h = box + 39;
-    const double r = std::sqrt(X_CS[3] * X_CS[3] + X_CS[7] * X_CS[7] + X_CS[11] * X_CS[11]) +
-                     std::sqrt(h[0] * h[0] + h[1] * h[1] + h[2] * h[2]);
+    const double *h = box + 39;
+    const double r = reach_radius(box);
     const double q = 0.25 * box[22];
     const double sag = r * q * q / 8.0 + 1e-9;
     for (int i = 0; i < 3; ++i) {
@@ -103,7 +119,7 @@ void swept_bounds(const double *box, double *lo, double *hi) {
 
 double first_depth(const double *box_a, const double *box_b, double tau_from, double target) {
     const double span = 1.0 - tau_from;
-    double lo = tau_from, hi = std::numeric_limits<double>::quiet_NaN();
+    double lo = tau_from, hi = kNaN;
     for (int k = 48; k >= 0; --k) {
         const double t = tau_from + std::ldexp(span, -k);
         if (path_depth(box_a, box_b, t) >= target) { hi = t; break; }
@@ -116,6 +132,149 @@ double first_depth(const double *box_a, const double *box_b, double tau_from, do
         if (path_depth(box_a, box_b, mid) >= target) hi = mid; else lo = mid;
     }
     return hi;
+}
+
+double step_reach(const double *state, double dt, double radius) {
+    const double *v = state + 7, *w = state + 10;
+    return (std::sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]) +
+            std::sqrt(w[0] * w[0] + w[1] * w[1] + w[2] * w[2]) * radius) * dt;
+}
+
+double bullet_step_angle(double speed, double dt) {
+    const double a = speed * dt;
+    if (!(a > kAngularMotionThreshold)) return a;
+    return 2.0 * std::atan(a / kAngularMotionThreshold * std::tan(0.5 * kAngularMotionThreshold));
+}
+
+void path_row(const double *state, double dt, const double *X_CS, const double *half, double *row) {
+    const double *q = state + 3, *v = state + 7, *w = state + 10;
+    const double qq = q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3];
+    const double s2 = qq > 0.0 ? 2.0 / qq : 0.0;  // the products below carry the 2 and the normalisation
+    const double x = q[0], y = q[1], z = q[2], r = q[3];
+    const double R[3][3] = {{1 - s2 * (y * y + z * z), s2 * (x * y - z * r), s2 * (x * z + y * r)},
+                            {s2 * (x * y + z * r), 1 - s2 * (x * x + z * z), s2 * (y * z - x * r)},
+                            {s2 * (x * z - y * r), s2 * (y * z + x * r), 1 - s2 * (x * x + y * y)}};
+    for (int i = 0; i < 3; ++i) {
+        for (int j = 0; j < 3; ++j) row[4 * i + j] = R[i][j];
+        row[4 * i + 3] = state[i];
+        row[12 + i] = 0.0;
+        row[16 + i] = v[i] * dt;
+    }
+    row[15] = 1.0;
+    const double speed = std::sqrt(w[0] * w[0] + w[1] * w[1] + w[2] * w[2]);
+    for (int i = 0; i < 3; ++i) row[19 + i] = speed > 0.0 ? w[i] / speed : 0.0;
+    row[22] = bullet_step_angle(speed, dt);
+    std::copy(X_CS, X_CS + 16, row + 23);
+    std::copy(half, half + 3, row + 39);
+}
+
+void frame_pose(const double *state, double dt, double tau, double *pose) {
+    const double *q1 = state + 3, *v = state + 7, *w = state + 10;
+    const double speed = std::sqrt(w[0] * w[0] + w[1] * w[1] + w[2] * w[2]);
+    const double half_angle = 0.5 * (tau - 1.0) * bullet_step_angle(speed, dt);
+    const double s = speed > 0.0 ? std::sin(half_angle) / speed : 0.0, c = std::cos(half_angle);
+    const double u[3] = {s * w[0], s * w[1], s * w[2]};  // the turn (tau - 1) angle about w: (u, c)
+    const double out[4] = {c * q1[0] + q1[3] * u[0] + u[1] * q1[2] - u[2] * q1[1],
+                           c * q1[1] + q1[3] * u[1] + u[2] * q1[0] - u[0] * q1[2],
+                           c * q1[2] + q1[3] * u[2] + u[0] * q1[1] - u[1] * q1[0],
+                           c * q1[3] - u[0] * q1[0] - u[1] * q1[1] - u[2] * q1[2]};
+    const double n = std::sqrt(out[0] * out[0] + out[1] * out[1] + out[2] * out[2] + out[3] * out[3]);
+    for (int i = 0; i < 3; ++i) pose[i] = state[i] + (tau - 1.0) * v[i] * dt;
+    for (int i = 0; i < 4; ++i) pose[3 + i] = out[i] / n;
+}
+
+double fit_path(const double *box, double lo, double hi, double *coeffs) {
+    const Pose P[3] = {box_pose(box, lo), box_pose(box, 0.5 * (lo + hi)), box_pose(box, hi)};
+    for (int i = 0; i < 4; ++i)
+        for (int j = 0; j < 4; ++j) {
+            double x[3];
+            for (int k = 0; k < 3; ++k) x[k] = i == 3 ? (j == 3) : j == 3 ? P[k].c[i] : P[k].R[i][j];
+            const int e = 4 * i + j;
+            coeffs[e] = x[0];
+            coeffs[16 + e] = i == 3 ? 0.0 : -3.0 * x[0] + 4.0 * x[1] - x[2];
+            coeffs[32 + e] = i == 3 ? 0.0 : 2.0 * x[0] - 4.0 * x[1] + 2.0 * x[2];
+        }
+    const double phi = box[22] * (hi - lo);
+    return kFitErrorPerCubedAngle * phi * phi * phi;
+}
+
+int fit_pieces(const double *box, double fit_tolerance) {
+    const double *h = box + 39, phi = box[22];
+    const double err1 = kFitErrorPerCubedAngle * phi * phi * phi * reach_radius(box);
+    const double allowed = fit_tolerance * std::min({h[0], h[1], h[2]});
+    int pieces = 1;
+    while (pieces < 64 && err1 > allowed * pieces * pieces * pieces) pieces *= 2;
+    return pieces;
+}
+
+namespace {
+
+// The fitted motion of a box over [lo, hi], its box inflated by the fit's
+// reach: a point at distance r is off by at most err r, and a ball fits in the
+// sheared box once scaled by 1 / (1 - err) (err < 0.5: Bullet turns a body by
+// less than pi in a step). `extra`: a further inflation, relative to r.
+struct FittedBox {
+    double lo[3], hi[3], coeffs[48];
+    FittedBox(const double *box, double t_lo, double t_hi, double extra) {
+        const double err = fit_path(box, t_lo, t_hi, coeffs), r = reach_radius(box);
+        const double grow = err * r / (1.0 - err) + extra * r;
+        for (int i = 0; i < 3; ++i) {
+            hi[i] = box[39 + i] + grow;
+            lo[i] = -hi[i];
+        }
+    }
+    BoxInput input() const { return {lo, hi, coeffs}; }
+};
+
+bool finite_row(const double *box) {
+    for (int i = 0; i < kPathBoxSize; ++i)
+        if (!std::isfinite(box[i])) return false;
+    return true;
+}
+
+}  // namespace
+
+double first_touch(const double *box_a, const double *box_b, double fit_tolerance, const Tolerances &tol) {
+    if (!finite_row(box_a) || !finite_row(box_b)) return kNaN;
+    const int n = std::max(fit_pieces(box_a, fit_tolerance), fit_pieces(box_b, fit_tolerance));
+    for (int k = 0; k < n; ++k) {  // pieces in order: the first that touches has the first touch
+        const double lo = double(k) / n, hi = double(k + 1) / n;
+        const FittedBox a(box_a, lo, hi, 0.0), b(box_b, lo, hi, 0.0);
+        const Hit h = Problem(a.input(), b.input(), 0.0, 1.0, tol).solve(false);
+        if (h.hit) return lo + h.t * (hi - lo);
+    }
+    return kNaN;
+}
+
+Hit path_contact(const double *box_a, const double *box_b, double lo, double hi, const Tolerances &tol) {
+    if (!finite_row(box_a) || !finite_row(box_b)) return Hit{};
+    if (hi - lo < 1e-12) lo = std::max(0.0, hi - 1e-12);
+    const FittedBox a(box_a, lo, hi, 1e-12), b(box_b, lo, hi, 1e-12);
+    Hit h = Problem(a.input(), b.input(), 0.0, 1.0, tol).solve(true);
+    h.t = lo + h.t * (hi - lo);
+    return h;
+}
+
+std::vector<std::pair<int64_t, int64_t>> candidate_pairs(const double *rows, int64_t n, int64_t n_fast,
+                                                         const int64_t *frame, const int64_t *frame_body,
+                                                         const uint8_t *frame_flags) {
+    std::vector<double> b(6 * n);
+    for (int64_t i = 0; i < n; ++i) swept_bounds(rows + kPathBoxSize * i, &b[6 * i], &b[6 * i + 3]);
+    std::vector<std::pair<int64_t, int64_t>> out;
+    for (int64_t i = 0; i < n_fast; ++i)
+        for (int64_t j = 0; j < n; ++j) {
+            if (j == i || (j < n_fast && j < i)) continue;
+            const double *bi = &b[6 * i], *bj = &b[6 * j];
+            if (!(bi[0] <= bj[3] && bj[0] <= bi[3] && bi[1] <= bj[4] && bj[1] <= bi[4] && bi[2] <= bj[5] &&
+                  bj[2] <= bi[5]))
+                continue;
+            const int64_t fi = frame[i], fj = frame[j];
+            if (fi == fj) continue;  // boxes of one link never collide with each other
+            if ((frame_flags[fi] & 1) && (frame_flags[fj] & 1)) continue;
+            if (frame_body[fi] == frame_body[fj] && !(frame_flags[fi] & 2)) continue;
+            out.emplace_back(i, j);
+        }
+    return out;
 }
 
 }  // namespace boxccd

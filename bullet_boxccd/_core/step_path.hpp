@@ -1,14 +1,45 @@
-// Overlap depth of two sharp boxes along Bullet's exact within-step paths, for
-// placing rewound bodies: each box's frame moves linearly and turns about a
-// fixed world axis (see bullet_boxccd/motion.py, StepPath).
+// Boxes on Bullet's exact within-step paths, for the pybullet plugin: each
+// box's frame (a link's centre of mass) moves linearly with the post-solve
+// velocity v and turns about the fixed world axis of the post-solve angular
+// velocity w (Bullet's exponential map), rebuilt backwards from the pose after
+// the step. tau in [0, 1] is the fraction of the step (1: after the step).
+//
+// Bullet clamps the angle above pi/4 per step, but it scales the quaternion's
+// vector part by |w| / (clamped |w|) before normalising, so the realised angle
+// is 2 atan(|w| dt / (pi/4) * tan(pi/8)) (btMultiBody::stepPositionsMultiDof
+// and btTransformUtil::integrateTransform both do this; measured on pybullet
+// 3.2.7 to 1e-15).
 #pragma once
 
+#include <cstdint>
+#include <utility>
+#include <vector>
+
+#include "box_ccd.hpp"
+
 namespace boxccd {
+
+// A frame's state after the step, as 13 doubles: position (3), orientation
+// quaternion x y z w (4, pybullet's order), v (3), w (3).
+constexpr int kFrameStateSize = 13;
 
 // One box on its path, as 42 doubles: X_W1 (4x4 row-major, the frame after the
 // step), dv (3, displacement over the step), axis (3, unit), angle (turned over
 // the step), X_CS (4x4, the box in its frame), half extents (3).
 constexpr int kPathBoxSize = 42;
+
+// The angle Bullet turns a body in a step of dt at angular speed `speed`.
+double bullet_step_angle(double speed, double dt);
+
+// How far a point at distance `radius` from the frame's origin can move in the
+// step: (|v| + |w| radius) dt (Bullet turns by at most |w| dt).
+double step_reach(const double *state, double dt, double radius);
+
+// The path row of a box at X_CS (4x4) with half extents `half` on a frame with `state`.
+void path_row(const double *state, double dt, const double *X_CS, const double *half, double *row);
+
+// The frame's pose at tau: position (3) and unit quaternion x y z w (4).
+void frame_pose(const double *state, double dt, double tau, double *pose);
 
 // Separating-axis overlap depth at step fraction tau: > 0 overlapping by that
 // much, <= 0 apart (the gap, negated, along the best of the 15 axes).
@@ -25,5 +56,35 @@ double first_depth(const double *box_a, const double *box_b, double tau_from, do
 // from its chords between them, r (angle / 4)^2 / 8 (r: the farthest box point
 // from the frame's origin). lo and hi are (3,) each.
 void swept_bounds(const double *box, double *lo, double *hi);
+
+// Quadratic motion of the box over the window [lo, hi] of the step (on its own
+// t in [0, 1]): interpolation of the exact pose at the window's start, middle
+// and end, written to coeffs (3x4x4, row-major). The position is linear, so it
+// is exact; the 3x3 part deviates from the true rotation by at most the
+// returned bound (spectral norm), so a point at distance r from the frame's
+// origin is off by at most bound * r.
+double fit_path(const double *box, double lo, double hi, double *coeffs);
+
+// Pieces (1, 2, 4, ... 64) of the step for which the fit of the box errs by at
+// most fit_tolerance times its smallest half extent.
+int fit_pieces(const double *box, double fit_tolerance);
+
+// The first touch of two boxes on their fitted motions, each piece's box
+// inflated by the fit's error bound so that the answer is never late: the step
+// fraction, NaN if they stay apart (or a row is not finite).
+double first_touch(const double *box_a, const double *box_b, double fit_tolerance, const Tolerances &tol);
+
+// The first touch of two boxes known to touch within [lo, hi], with its
+// geometry (one fit over the window, inflated likewise); t is a step fraction.
+Hit path_contact(const double *box_a, const double *box_b, double lo, double hi, const Tolerances &tol);
+
+// Pairs of the n path rows whose swept bounds meet, for the broad phase. Rows
+// 0 .. n_fast - 1 are the fast boxes: every pair has a fast first member, and a
+// pair of fast boxes appears once. frame[i] is row i's frame; boxes of one
+// frame never pair, nor boxes of two static frames, nor boxes of one body unless
+// it self-collides (flags[frame]: bit 0 static, bit 1 self-collides).
+std::vector<std::pair<int64_t, int64_t>> candidate_pairs(const double *rows, int64_t n, int64_t n_fast,
+                                                         const int64_t *frame, const int64_t *frame_body,
+                                                         const uint8_t *frame_flags);
 
 }  // namespace boxccd
