@@ -157,6 +157,8 @@ def _t_range(t_range) -> tuple[float, float]:
 
 
 def _pair_args(a, m_a, b, m_b):
+    if type(a) is Box and type(b) is Box and type(m_a) is QuadraticMotion and type(m_b) is QuadraticMotion:
+        return a._data, m_a._data, b._data, m_b._data  # the common case, a quarter of the cost of the loop
     for name, v, cls in (("a", a, Box), ("m_a", m_a, QuadraticMotion), ("b", b, Box), ("m_b", m_b, QuadraticMotion)):
         if not isinstance(v, cls):
             raise InvalidInputError(f"{name}: expected a {cls.__name__}, got {type(v).__name__}")
@@ -183,10 +185,10 @@ def time_of_impact(
 
 
 def _to_contact(r) -> Contact:
-    """A Contact from the core's (t, initial, kind, feature of A, feature of B, point, normal)."""
-    t, initial, kind, feature_a, feature_b, point, normal = r
+    """A Contact from the core's (t, initial, kind, feature of A, feature of B, [point, normal])."""
+    t, initial, kind, feature_a, feature_b, point_normal = r
     # tuple.__new__ skips NamedTuple's argument handling: half the cost of building the result.
-    return _new(Contact, (t, point, normal, _new(Feature, (kind, feature_a, feature_b)), initial))
+    return _new(Contact, (t, point_normal[0], point_normal[1], _new(Feature, (kind, feature_a, feature_b)), initial))
 
 
 def time_of_impact_batch(

@@ -75,21 +75,23 @@ std::string feature_name(const std::array<int8_t, 3> &signs) {
 const char *kKind[3] = {"OV", "VO", "EE"};
 const char *facet_kind(int facet) { return kKind[facet < 6 ? 0 : facet < 12 ? 1 : 2]; }
 
-using Out3 = nb::ndarray<nb::numpy, double, nb::shape<3>>;
-Out3 vec3(const std::array<double, 3> &v) {
-    double *d = new double[3]{v[0], v[1], v[2]};
+// A hit as (t, initial, kind, feature of A, feature of B, [point, normal] (2, 3)):
+// one array for both vectors, since each array made costs more than the solve of a
+// simple pair.
+nb::tuple hit_result(const Hit &h) {
+    double *d = new double[6]{h.point[0], h.point[1], h.point[2], h.normal[0], h.normal[1], h.normal[2]};
     nb::capsule owner(d, [](void *p) noexcept { delete[] static_cast<double *>(p); });
-    return Out3(d, {3}, owner);
+    return nb::make_tuple(h.t, h.initial, facet_kind(h.facet), feature_name(h.feat_a), feature_name(h.feat_b),
+                          nb::ndarray<nb::numpy, double, nb::shape<2, 3>>(d, {2, 3}, owner));
 }
 
-// (t, initial, kind, feature of A, feature of B, point, normal) or None.
+// A hit_result or None.
 nb::object solve(const BoxData &a, const MotionData &m_a, const BoxData &b, const MotionData &m_b, double t0,
                  double t1, const Tolerances &tol) {
     const Problem p = make_problem(a, m_a, b, m_b, t0, t1, tol);
     const Hit h = p.solve(true);
     if (!h.hit) return nb::none();
-    return nb::make_tuple(h.t, h.initial, facet_kind(h.facet), feature_name(h.feat_a), feature_name(h.feat_b),
-                          vec3(h.point), vec3(h.normal));
+    return hit_result(h);
 }
 
 // Validates every row (raising for the first bad one, naming all bad rows),
@@ -306,12 +308,11 @@ nb::tuple py_fit_path(const In<kPathBoxSize> &box, double lo, double hi) {
     return nb::make_tuple(Out<double, 3, 4, 4>(out, {3, 4, 4}, owner), err);
 }
 
-// Like solve: (t, initial, kind, feature of A, feature of B, point, normal) or None.
+// Like solve: a hit_result or None.
 nb::object py_path_contact(const PathBoxes &boxes, double lo, double hi, const Tolerances &tol) {
     const Hit h = path_contact(boxes.data(), boxes.data() + kPathBoxSize, lo, hi, tol);
     if (!h.hit) return nb::none();
-    return nb::make_tuple(h.t, h.initial, facet_kind(h.facet), feature_name(h.feat_a), feature_name(h.feat_b),
-                          vec3(h.point), vec3(h.normal));
+    return hit_result(h);
 }
 
 }  // namespace

@@ -27,12 +27,36 @@ inline double coef(const double *C, int k, int r, int c) { return C[k * 16 + r *
 // Entry (r, c) of M(t0 + w s) as a polynomial in s.
 Poly entry_in_s(const double *C, int r, int c, double t0, double w) {
     const double c0 = coef(C, 0, r, c), c1 = coef(C, 1, r, c), c2 = coef(C, 2, r, c);
-    Poly p;
+    Poly p{};
     p.deg = 2;
     p.c[0] = c0 + t0 * (c1 + t0 * c2);
     p.c[1] = (c1 + 2.0 * c2 * t0) * w;
     p.c[2] = c2 * w * w;
     return p;
+}
+
+// Degree class of a polynomial vector: 0 when every entry is constant (a box
+// that only translates has constant edge directions), else its nominal degree.
+int degree_class(const PVec &v, int nominal) {
+    for (const Poly &p : v.x)
+        for (int i = 1; i <= p.deg; ++i)
+            if (p.c[i] != 0.0) return nominal;
+    return 0;
+}
+
+// a x b and a . b with the products a constant operand does not need skipped
+// (the same values: the skipped terms are exact zeros). Degrees: a, b in {0, 2}
+// for cross; a in {0, 2, 4} and b in {0, 2} for dot.
+PVec cross_by_degree(const PVec &a, int da, const PVec &b, int db) {
+    if (da == 0) return db == 0 ? cross<0, 0>(a, b) : cross<0, 2>(a, b);
+    return db == 0 ? cross<2, 0>(a, b) : cross<2, 2>(a, b);
+}
+Poly dot_by_degree(const PVec &a, int da, const PVec &b, int db) {
+    switch (da) {
+        case 0: return db == 0 ? dot<0, 0>(a, b) : dot<0, 2>(a, b);
+        case 2: return db == 0 ? dot<2, 0>(a, b) : dot<2, 2>(a, b);
+        default: return db == 0 ? dot<4, 0>(a, b) : dot<4, 2>(a, b);
+    }
 }
 
 bool finite_poly(const Poly &p) {
@@ -90,13 +114,6 @@ void check_time_range(double t0, double t1) {
         throw TimeRangeError("t_range = (" + num(t0) + ", " + num(t1) + ") is too long to represent");
 }
 
-int axis_generator(int axis, int which) {
-    if (axis < 3) return (axis + 1 + which) % 3;
-    if (axis < 6) return 3 + (axis - 3 + 1 + which) % 3;
-    const int e = axis - 6;
-    return which == 0 ? e / 3 : 3 + e % 3;
-}
-
 Problem::Problem(const BoxInput &a, const BoxInput &b, double t0_, double t1_, const Tolerances &tol)
     : t0(t0_), t1(t1_), tol_(tol) {
     const double w = t1 - t0;
@@ -115,21 +132,24 @@ Problem::Problem(const BoxInput &a, const BoxInput &b, double t0_, double t1_, c
             for (int i = 0; i < 3; ++i) axpy(c, 0.5 * (bx.lo[i] + bx.hi[i]), g_[3 * q + i].x[r]);
             centre[q].x[r] = c;
         }
-        for (int i = 0; i < 3; ++i)
-            dmag_ += std::fabs(0.5 * (bx.lo[i] + bx.hi[i])) * g_[3 * q + i].magnitude();
+        for (int i = 0; i < 3; ++i) {
+            gmag_[3 * q + i] = g_[3 * q + i].magnitude();
+            dmag_ += std::fabs(0.5 * (bx.lo[i] + bx.hi[i])) * gmag_[3 * q + i];
+        }
     }
     cA_ = centre[0];
     cB_ = centre[1];
     for (int r = 0; r < 3; ++r) d_.x[r] = cB_.x[r] - cA_.x[r];
     size_ = hmag_ = 0.0;
     for (int g = 0; g < 6; ++g) {
-        gmag_[g] = g_[g].magnitude();
         hmag_ += h_[g] * gmag_[g];
-        size_ += h_[g] * norm3(g_[g](0.5));
+        size_ += h_[g] * norm3(g_[g].at2(0.5));
     }
+    for (int g = 0; g < 6; ++g) gdeg_[g] = degree_class(g_[g], 2);
+    ddeg_ = degree_class(d_, 2);
     for (int q = 0; q < 2; ++q) {
-        n_[3 * q] = cross(g_[3 * q + 1], g_[3 * q + 2]);
-        proj_[kDet + q] = dot<2, 4>(g_[3 * q], n_[3 * q]);
+        n_[3 * q] = cross_by_degree(g_[3 * q + 1], gdeg_[3 * q + 1], g_[3 * q + 2], gdeg_[3 * q + 2]);
+        proj_[kDet + q] = dot_by_degree(n_[3 * q], normal_degree(3 * q), g_[3 * q], gdeg_[3 * q]);
     }
     // Inputs near the top of the double range overflow in these products;
     // say so instead of returning nonsense.
@@ -145,16 +165,17 @@ Problem::Problem(const BoxInput &a, const BoxInput &b, double t0_, double t1_, c
 void Problem::build_facet_terms() const {
     if (terms_built_) return;
     for (int ax = 0; ax < 15; ++ax) {
-        if (ax != 0 && ax != 3) n_[ax] = cross(g_[axis_generator(ax, 0)], g_[axis_generator(ax, 1)]);
-        nd_[ax] = dot<4, 2>(n_[ax], d_);
+        const int ga = axis_generator(ax, 0), gb = axis_generator(ax, 1);
+        if (ax != 0 && ax != 3) n_[ax] = cross_by_degree(g_[ga], gdeg_[ga], g_[gb], gdeg_[gb]);
+        nd_[ax] = dot_by_degree(n_[ax], normal_degree(ax), d_, ddeg_);
     }
     for (int ax = 0; ax < 15; ++ax)
         noise_[ax] = tol_.rounding * kEps * (dmag_ + hmag_) * gmag_[axis_generator(ax, 0)] *
                      gmag_[axis_generator(ax, 1)];
     for (int i = 0; i < 3; ++i)
         for (int l = 0; l < 3; ++l) {
-            proj_[3 * i + l] = dot<4, 2>(n_[i], g_[3 + l]);
-            proj_[9 + 3 * i + l] = dot<4, 2>(n_[3 + i], g_[l]);
+            proj_[3 * i + l] = dot_by_degree(n_[i], normal_degree(i), g_[3 + l], gdeg_[3 + l]);
+            proj_[9 + 3 * i + l] = dot_by_degree(n_[3 + i], normal_degree(3 + i), g_[l], gdeg_[l]);
         }
     for (Poly &q : proj_) trim(q);  // constant under pure translation
     for (Poly &q : nd_) trim(q);
@@ -169,12 +190,12 @@ struct Projection {
     int8_t sign;
 };
 struct ProjectionTable {
-    Projection p[15][6];
-    ProjectionTable() {
+    Projection p[15][6]{};
+    constexpr ProjectionTable() {
         for (int ax = 0; ax < 15; ++ax)
             for (int g = 0; g < 6; ++g) p[ax][g] = compute(ax, g);
     }
-    static Projection compute(int axis, int g) {
+    static constexpr Projection compute(int axis, int g) {
         if (axis < 3) {
             if (g >= 3) return {static_cast<int8_t>(3 * axis + (g - 3)), 1};
             return {static_cast<int8_t>(g == axis ? kDet : -1), 1};
@@ -197,7 +218,7 @@ struct ProjectionTable {
         return {static_cast<int8_t>(9 + 3 * (3 - j - l) + i), static_cast<int8_t>(l == (j + 1) % 3 ? 1 : -1)};
     }
 };
-const ProjectionTable kProjection;
+constexpr ProjectionTable kProjection;  // constant: the unrolled loops fold it away
 }  // namespace
 
 void Problem::check_regular(const char *name_a, const char *name_b) const {
@@ -287,7 +308,7 @@ void Problem::ensure_axis(const Section &sec, int ax) const {
         const double mid = 0.5 * (sec.lo + sec.hi);
         for (int i = 0; i < 20; ++i) sec.pv_mid[i] = proj_[i](mid);
         for (int g = 0; g < 6; ++g) {
-            sec.g_mid[g] = g_[g](mid);
+            sec.g_mid[g] = g_[g].at2(mid);
             sec.glen_mid[g] = norm3(sec.g_mid[g]);
         }
         sec.mid_ready = true;
@@ -312,7 +333,7 @@ const Poly &Problem::facet_poly(const Section &sec, int facet) const {
     if (!(sec.built & (1u << facet))) {
         const int ax = facet / 2;
         ensure_axis(sec, ax);
-        Poly H;
+        Poly H{};
         for (int g = 0; g < 6; ++g) {
             if (!sec.sig[ax][g]) continue;
             const Projection pr = kProjection.p[ax][g];
@@ -422,28 +443,46 @@ int Problem::best_facet(const Section &sec, double s) const {
 // it changes speed, never answers.
 // The most separating of the 15 axes at s (unit), and its separation; 0 if none separates.
 Problem::Axis Problem::best_axis_at(double s) const {
-    std::array<double, 3> gs[6];
-    double len2[6];
+    std::array<double, 3> gs[6], n[15];
+    double len2[6], nn2[15], pv[20];
     for (int g = 0; g < 6; ++g) {
-        gs[g] = g_[g](s);
+        gs[g] = g_[g].at2(s);
         len2[g] = gs[g][0] * gs[g][0] + gs[g][1] * gs[g][1] + gs[g][2] * gs[g][2];
     }
-    const std::array<double, 3> ds = d_(s);
+    const std::array<double, 3> ds = d_.at2(s);
+#pragma GCC unroll 15
+    for (int ax = 0; ax < 15; ++ax) {
+        const std::array<double, 3> &a = gs[axis_generator(ax, 0)], &b = gs[axis_generator(ax, 1)];
+        n[ax] = {a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]};
+        nn2[ax] = n[ax][0] * n[ax][0] + n[ax][1] * n[ax][1] + n[ax][2] * n[ax][2];
+    }
+    // Every projection of a generator on an axis is one of the 20 triple
+    // products (see kProjection): the face normals give them all.
+    auto dot3 = [](const std::array<double, 3> &u, const std::array<double, 3> &v) {
+        return u[0] * v[0] + u[1] * v[1] + u[2] * v[2];
+    };
+    for (int q = 0; q < 2; ++q) {
+        for (int i = 0; i < 3; ++i)
+            for (int l = 0; l < 3; ++l) pv[9 * q + 3 * i + l] = dot3(n[3 * q + i], gs[3 * (1 - q) + l]);
+        pv[kDet + q] = dot3(n[3 * q], gs[3 * q]);
+    }
     Axis best;
+    double best_gap2 = 0.0;  // best.gap squared
+#pragma GCC unroll 15
     for (int ax = 0; ax < 15; ++ax) {
         const int ga = axis_generator(ax, 0), gb = axis_generator(ax, 1);
-        const std::array<double, 3> &a = gs[ga], &b = gs[gb];
-        const std::array<double, 3> n = {a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]};
-        const double nn2 = n[0] * n[0] + n[1] * n[1] + n[2] * n[2];
-        if (!(nn2 > 1e-18 * len2[ga] * len2[gb])) continue;  // parallel edges: no axis
-        const double nn = std::sqrt(nn2), beat = best.gap * nn;
-        double gap = std::fabs(n[0] * ds[0] + n[1] * ds[1] + n[2] * ds[2]);
-        for (int g = 0; g < 6 && gap > beat; ++g)  // stop once it cannot beat the best
-            if (g != ga && g != gb)  // the axis' own generators project to zero
-                gap -= h_[g] * std::fabs(n[0] * gs[g][0] + n[1] * gs[g][1] + n[2] * gs[g][2]);
-        if (gap > beat) {
+        if (!(nn2[ax] > 1e-18 * len2[ga] * len2[gb])) continue;  // parallel edges: no axis
+        double gap = std::fabs(dot3(n[ax], ds));
+#pragma GCC unroll 6
+        for (int g = 0; g < 6; ++g) {
+            const Projection pr = kProjection.p[ax][g];
+            if (pr.index >= 0) gap -= h_[g] * std::fabs(pv[pr.index]);
+        }
+        if (gap > 0.0 && gap * gap > best_gap2 * nn2[ax]) {  // gap / |n| beats the best
+            const double nn = std::sqrt(nn2[ax]);
             best.gap = gap / nn;
-            best.u = {n[0] / nn, n[1] / nn, n[2] / nn};
+            best_gap2 = best.gap * best.gap;
+            best.u = {n[ax][0] / nn, n[ax][1] / nn, n[ax][2] / nn};
         }
     }
     return best;
@@ -453,8 +492,8 @@ bool Problem::apart_on_fixed_axis(double lo, double hi, const Axis &at_lo, const
     const double margin = tol_.gap_rel * size_ + tol_.rounding * kEps * (dmag_ + hmag_);
     const double half_w = 0.5 * (hi - lo);
     auto ctrl = [lo, hi, half_w](const Poly &p, double u) {  // control points of u * p on [lo, hi]
-        const double p_lo = p(lo);
-        return std::array<double, 3>{u * p_lo, u * (p_lo + half_w * (p.c[1] + 2.0 * p.c[2] * lo)), u * p(hi)};
+        const double p_lo = eval2(p, lo);
+        return std::array<double, 3>{u * p_lo, u * (p_lo + half_w * (p.c[1] + 2.0 * p.c[2] * lo)), u * eval2(p, hi)};
     };
     for (const Axis *axis : {&at_lo, &at_hi}) {
         if (axis->gap <= margin) continue;

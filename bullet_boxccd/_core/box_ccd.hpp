@@ -93,6 +93,12 @@ struct Hit {
     std::array<int8_t, 3> feat_a{}, feat_b{};
 };
 
+// The two generators spanning each axis (see the file comment): a table, since
+// the hot loops ask for them per axis.
+inline constexpr int8_t kAxisGenerators[15][2] = {{1, 2}, {2, 0}, {0, 1}, {4, 5}, {5, 3}, {3, 4}, {0, 3}, {0, 4},
+                                                  {0, 5}, {1, 3}, {1, 4}, {1, 5}, {2, 3}, {2, 4}, {2, 5}};
+constexpr int axis_generator(int axis, int which) { return kAxisGenerators[axis][which]; }
+
 // The precomputed polynomials of one query (see the file comment).
 class Problem {
 public:
@@ -163,6 +169,10 @@ private:
     double h_[6];
     PVec cA_, cB_, d_;
     double gmag_[6];
+    int gdeg_[6], ddeg_;  // degree classes of g_ and d_ (0: constant, else 2)
+    int normal_degree(int axis) const {  // of n_[axis], the cross product of its two generators
+        return gdeg_[axis_generator(axis, 0)] + gdeg_[axis_generator(axis, 1)];
+    }
     double dmag_, hmag_;
     double size_;  // world size used by gap_rel
     // Cofactor terms; n_[0], n_[3] and det_ are built with the problem (the
@@ -176,7 +186,6 @@ private:
     mutable bool terms_built_ = false;
 };
 
-int axis_generator(int axis, int which);  // the two generators spanning an axis
 constexpr int kDet = 18;                   // proj_[kDet + q] is det A (q = 0) or det B (q = 1)
 
 }  // namespace boxccd

@@ -25,9 +25,12 @@ namespace boxccd {
 constexpr int kMaxDeg = 6;
 constexpr double kEps = std::numeric_limits<double>::epsilon();
 
+// An aggregate on purpose: `Poly p{}` is the zero polynomial, while a plain
+// `Poly p;` (or an array member) is storage that is assigned whole before it is
+// read. The solver's tables of ~100 polynomials then cost no zeroing per query.
 struct Poly {
-    std::array<double, kMaxDeg + 1> c{};  // c[i] multiplies s^i
-    int deg = 0;                          // c[i] == 0 for i > deg
+    std::array<double, kMaxDeg + 1> c;  // c[i] multiplies s^i
+    int deg;                            // c[i] == 0 for i > deg
 
     double operator()(double s) const {
         double v = c[deg];
@@ -44,13 +47,13 @@ struct Poly {
 };
 
 inline Poly operator-(const Poly &a, const Poly &b) {
-    Poly r;
+    Poly r{};
     r.deg = a.deg > b.deg ? a.deg : b.deg;
     for (int i = 0; i <= r.deg; ++i) r.c[i] = a.c[i] - b.c[i];
     return r;
 }
 inline Poly operator*(double k, const Poly &a) {
-    Poly r;
+    Poly r{};
     r.deg = a.deg;
     for (int i = 0; i <= r.deg; ++i) r.c[i] = k * a.c[i];
     return r;
@@ -82,17 +85,21 @@ inline void mul_acc_fixed(Poly &r, double k, const Poly &a, const Poly &b) {
     if (DA + DB > r.deg) r.deg = DA + DB;
 }
 
+// p(s) for p of degree <= 2 (edge directions and centres), without the loop.
+inline double eval2(const Poly &p, double s) { return p.c[0] + s * (p.c[1] + s * p.c[2]); }
+
 // A polynomial vector (a box edge direction, a centre, a normal).
 struct PVec {
     Poly x[3];
     std::array<double, 3> operator()(double s) const { return {x[0](s), x[1](s), x[2](s)}; }
+    std::array<double, 3> at2(double s) const { return {eval2(x[0], s), eval2(x[1], s), eval2(x[2], s)}; }
     double magnitude() const { return x[0].magnitude() + x[1].magnitude() + x[2].magnitude(); }
 };
 // Cross and dot products of vectors whose entries have degree <= DA, DB
 // (edge directions and centres are quadratic, normals quartic).
 template <int DA = 2, int DB = 2>
 inline PVec cross(const PVec &a, const PVec &b) {
-    PVec r;
+    PVec r{};
     for (int i = 0; i < 3; ++i) {
         const int j = (i + 1) % 3, k = (i + 2) % 3;
         mul_acc_fixed<DA, DB>(r.x[i], 1.0, a.x[j], b.x[k]);
@@ -102,7 +109,7 @@ inline PVec cross(const PVec &a, const PVec &b) {
 }
 template <int DA, int DB>
 inline Poly dot(const PVec &a, const PVec &b) {
-    Poly r;
+    Poly r{};
     for (int i = 0; i < 3; ++i) mul_acc_fixed<DA, DB>(r, 1.0, a.x[i], b.x[i]);
     return r;
 }
