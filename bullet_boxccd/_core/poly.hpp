@@ -198,8 +198,19 @@ inline double refine_crossing(const Poly &p, double lo, double hi) {
     double flo = p(lo), fhi = p(hi);
     if (!(flo > 0.0)) return lo;
     int side = 0;
+    double nudge = 0.25 * kRootWidth;
     for (int it = 0; it < 100 && hi - lo > kRootWidth; ++it) {
         double x = (lo * fhi - hi * flo) / (fhi - flo);
+        // Once an end is within rounding of the root, the secant stalls on it:
+        // step just past that end instead (doubling the step while it stalls), so
+        // that the bracket closes at once rather than by ~50 bisections.
+        if (!(x > lo + nudge)) {
+            x = lo + nudge;
+            nudge *= 2.0;
+        } else if (!(x < hi - nudge)) {
+            x = hi - nudge;
+            nudge *= 2.0;
+        }
         if (!(x > lo && x < hi)) x = 0.5 * (lo + hi);
         if (x <= lo || x >= hi) break;  // adjacent doubles
         const double fx = p(x);
