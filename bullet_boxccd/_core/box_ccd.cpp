@@ -490,49 +490,61 @@ Problem::Axis Problem::best_axis_at(double s) const {
 
 bool Problem::apart_on_fixed_axis(double lo, double hi, const Axis &at_lo, const Axis &at_hi) const {
     const double margin = tol_.gap_rel * size_ + tol_.rounding * kEps * (dmag_ + hmag_);
+    if (at_lo.gap <= margin && at_hi.gap <= margin) return false;
+    // Bernstein control points on [lo, hi] of d (v = 0) and the generators
+    // (v = 1..6), shared by both candidate axes: ctrl[v][k] is a point in R^3.
     const double half_w = 0.5 * (hi - lo);
-    auto ctrl = [lo, hi, half_w](const Poly &p, double u) {  // control points of u * p on [lo, hi]
-        const double p_lo = eval2(p, lo);
-        return std::array<double, 3>{u * p_lo, u * (p_lo + half_w * (p.c[1] + 2.0 * p.c[2] * lo)), u * eval2(p, hi)};
+    std::array<double, 3> ctrl[7][3];
+    for (int v = 0; v < 7; ++v) {
+        const PVec &P = v == 0 ? d_ : g_[v - 1];
+        for (int r = 0; r < 3; ++r) {
+            const Poly &p = P.x[r];
+            const double p_lo = eval2(p, lo);
+            ctrl[v][0][r] = p_lo;
+            ctrl[v][1][r] = p_lo + half_w * (p.c[1] + 2.0 * p.c[2] * lo);
+            ctrl[v][2][r] = eval2(p, hi);
+        }
+    }
+    auto dot3 = [](const std::array<double, 3> &u, const std::array<double, 3> &x) {
+        return u[0] * x[0] + u[1] * x[1] + u[2] * x[2];
     };
     for (const Axis *axis : {&at_lo, &at_hi}) {
-        if (axis->gap <= margin) continue;
+        if (axis->gap <= margin || (axis == &at_hi && at_hi.u == at_lo.u && at_lo.gap > margin)) continue;
         const std::array<double, 3> &u = axis->u;
-        std::array<double, 3> bd{};
-        for (int r = 0; r < 3; ++r) {
-            const auto c = ctrl(d_.x[r], u[r]);
-            for (int k = 0; k < 3; ++k) bd[k] += c[k];
-        }
-        double lower = std::min({std::fabs(bd[0]), std::fabs(bd[1]), std::fabs(bd[2])});
+        const double bd[3] = {dot3(u, ctrl[0][0]), dot3(u, ctrl[0][1]), dot3(u, ctrl[0][2])};
         if (!((bd[0] > 0 && bd[1] > 0 && bd[2] > 0) || (bd[0] < 0 && bd[1] < 0 && bd[2] < 0))) continue;
-        for (int g = 0; g < 6; ++g) {
-            std::array<double, 3> bg{};
-            for (int r = 0; r < 3; ++r) {
-                const auto c = ctrl(g_[g].x[r], u[r]);
-                for (int k = 0; k < 3; ++k) bg[k] += c[k];
-            }
-            lower -= h_[g] * std::max({std::fabs(bg[0]), std::fabs(bg[1]), std::fabs(bg[2])});
-        }
+        double lower = std::min({std::fabs(bd[0]), std::fabs(bd[1]), std::fabs(bd[2])});
+        for (int g = 0; g < 6; ++g)
+            lower -= h_[g] * std::max({std::fabs(dot3(u, ctrl[g + 1][0])), std::fabs(dot3(u, ctrl[g + 1][1])),
+                                       std::fabs(dot3(u, ctrl[g + 1][2]))});
         if (lower > margin) return true;
     }
     return false;
 }
 
 // The start of the first piece of [lo, hi] (halved `depth` times) that no fixed
-// axis proves apart; NaN if every piece is proven apart.
-double Problem::first_unproven(double lo, double hi, const Axis &at_lo, const Axis &at_hi, int depth) const {
+// axis proves apart; NaN if every piece is proven apart. `budget` caps the new
+// sample times (best_axis_at calls): once spent, an unproven piece is not split.
+double Problem::first_unproven(double lo, double hi, const Axis &at_lo, const Axis &at_hi, int depth,
+                               int &budget) const {
     if (apart_on_fixed_axis(lo, hi, at_lo, at_hi)) return std::numeric_limits<double>::quiet_NaN();
-    if (depth == 0) return lo;
+    if (depth == 0 || budget == 0) return lo;
+    --budget;
     const double mid = 0.5 * (lo + hi);
     const Axis at_mid = best_axis_at(mid);
-    const double s = first_unproven(lo, mid, at_lo, at_mid, depth - 1);
-    return std::isnan(s) ? first_unproven(mid, hi, at_mid, at_hi, depth - 1) : s;
+    const double s = first_unproven(lo, mid, at_lo, at_mid, depth - 1, budget);
+    return std::isnan(s) ? first_unproven(mid, hi, at_mid, at_hi, depth - 1, budget) : s;
 }
 
 Hit Problem::solve(bool want_geometry) const {
     Hit hit;
     // Pieces of the range that one fixed axis keeps apart need no BMS search.
-    const double start = first_unproven(0.0, 1.0, best_axis_at(0.0), best_axis_at(1.0), kCullDepth);
+    // Turning boxes make the BMS search costly (octant switches, degree-6
+    // facets), so their culling goes deeper than that of translating ones.
+    const bool turning = gdeg_[0] | gdeg_[1] | gdeg_[2] | gdeg_[3] | gdeg_[4] | gdeg_[5];
+    int budget = kCullBudget;
+    const double start = first_unproven(0.0, 1.0, best_axis_at(0.0), best_axis_at(1.0),
+                                        turning ? kCullDepthTurning : kCullDepth, budget);
     if (std::isnan(start)) return hit;
     build_facet_terms();
     Switches sw = first_switches(start);

@@ -154,8 +154,10 @@ private:
     };
     Axis best_axis_at(double s) const;
     bool apart_on_fixed_axis(double lo, double hi, const Axis &at_lo, const Axis &at_hi) const;
-    double first_unproven(double lo, double hi, const Axis &at_lo, const Axis &at_hi, int depth) const;
-    static constexpr int kCullDepth = 2;  // up to 4 pieces: measured best on the benchmark pairs
+    double first_unproven(double lo, double hi, const Axis &at_lo, const Axis &at_hi, int depth, int &budget) const;
+    // Pieces (2^depth at most) and new sample times per query, measured best on
+    // the benchmark pairs (benchmarks/solver.py).
+    static constexpr int kCullDepth = 2, kCullDepthTurning = 6, kCullBudget = 8;
     void ensure_axis(const Section &sec, int ax) const;
     // From s in the section: true with s at the first contact, or false when a
     // facet (`separating`, also a warm start on entry) keeps the section apart.
