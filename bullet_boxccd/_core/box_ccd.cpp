@@ -466,24 +466,33 @@ Problem::Axis Problem::best_axis_at(double s) const {
             for (int l = 0; l < 3; ++l) pv[9 * q + 3 * i + l] = dot3(n[3 * q + i], gs[3 * (1 - q) + l]);
         pv[kDet + q] = dot3(n[3 * q], gs[3 * q]);
     }
-    Axis best;
-    double best_gap2 = 0.0;  // best.gap squared
+    // Each axis' gap |n.d| - sum_g h_g |n.g| (unnormalised), then the best gap / |n|.
+    double gap[15];
 #pragma GCC unroll 15
     for (int ax = 0; ax < 15; ++ax) {
-        const int ga = axis_generator(ax, 0), gb = axis_generator(ax, 1);
-        if (!(nn2[ax] > 1e-18 * len2[ga] * len2[gb])) continue;  // parallel edges: no axis
-        double gap = std::fabs(dot3(n[ax], ds));
+        double v = std::fabs(dot3(n[ax], ds));
 #pragma GCC unroll 6
         for (int g = 0; g < 6; ++g) {
             const Projection pr = kProjection.p[ax][g];
-            if (pr.index >= 0) gap -= h_[g] * std::fabs(pv[pr.index]);
+            if (pr.index >= 0) v -= h_[g] * std::fabs(pv[pr.index]);
         }
-        if (gap > 0.0 && gap * gap > best_gap2 * nn2[ax]) {  // gap / |n| beats the best
-            const double nn = std::sqrt(nn2[ax]);
-            best.gap = gap / nn;
-            best_gap2 = best.gap * best.gap;
-            best.u = {n[ax][0] / nn, n[ax][1] / nn, n[ax][2] / nn};
+        gap[ax] = v;
+    }
+    Axis best;
+    int best_ax = -1;
+    double best_gap2 = 0.0;  // (gap / |n|)^2 of the best
+    for (int ax = 0; ax < 15; ++ax) {
+        const double lim = 1e-18 * len2[axis_generator(ax, 0)] * len2[axis_generator(ax, 1)];
+        // Parallel edges give no axis; gap^2 / |n|^2 ranks the rest without a sqrt.
+        if (gap[ax] > 0.0 && nn2[ax] > lim && gap[ax] * gap[ax] > best_gap2 * nn2[ax]) {
+            best_gap2 = gap[ax] * gap[ax] / nn2[ax];
+            best_ax = ax;
         }
+    }
+    if (best_ax >= 0) {
+        const double nn = std::sqrt(nn2[best_ax]);
+        best.gap = gap[best_ax] / nn;
+        best.u = {n[best_ax][0] / nn, n[best_ax][1] / nn, n[best_ax][2] / nn};
     }
     return best;
 }
