@@ -85,7 +85,7 @@ class CCDStats:
     tracked_boxes: int = 0
     swept_boxes: int = 0
     candidate_pairs: int = 0
-    solver_rows: int = 0
+    solver_rows: int = 0  # solver calls: a pair whose step is split into n pieces counts up to n
     contacts: int = 0
     rewinds: int = 0
     held: int = 0  # contacts pybullet left unresolved, released by BoxCCD._release_held
@@ -205,8 +205,8 @@ class BoxCCD:
         half = np.array(half, dtype=float).reshape(-1, 3)
         X_CS = np.array(X_CS, dtype=float).reshape(-1, 4, 4)
         radius = np.linalg.norm(X_CS[:, :3, 3], axis=1) + np.linalg.norm(half, axis=1)
-        self._frames = _Frames(np.array(body, int), np.array(link, int), np.array(static, bool),
-                               np.array(rewind, bool), np.array(box_frame, int), half, X_CS, radius)
+        self._frames = _Frames(np.array(body, np.int64), np.array(link, np.int64), np.array(static, bool),
+                               np.array(rewind, bool), np.array(box_frame, np.int64), half, X_CS, radius)
         self._keys = [(int(b), int(lk)) for b, lk in zip(body, link)]  # plain ints for the pybullet calls
         self._frame_index = {key: i for i, key in enumerate(self._keys)}
         self._dynamic = np.flatnonzero(~self._frames.static).tolist()
@@ -351,8 +351,8 @@ class BoxCCD:
         if not len(pairs):
             return [], 1.0
         # First contact of each pair on the fitted (conservative) motions.
-        tau = _core.first_touches(rows, pairs, self.fit_tolerance, self.tolerances._core)
-        st.solver_rows += len(pairs)
+        tau, solves = _core.first_touches(rows, pairs, self.fit_tolerance, self.tolerances._core)
+        st.solver_rows += solves
         hit = np.flatnonzero(~np.isnan(tau))
         hits = [(i, j, t) for (i, j), t in zip(pairs[hit].tolist(), tau[hit].tolist())]
         t3 = time.perf_counter()

@@ -104,8 +104,10 @@ def test_first_touch_is_never_late_and_never_missed(seed):
         sa[7:10] = rng.uniform(-1, 1, 3) * 200.0
         boxes = [(0, *random_box(rng)), (1, *random_box(rng))]
         rows = rows_of([sa, sb], boxes)
-        tau = _core.first_touches(rows, np.array([[0, 1]], dtype=np.int64), FIT_TOLERANCE,
-                                  _core.Tolerances())[0]
+        taus, solves = _core.first_touches(rows, np.array([[0, 1]], dtype=np.int64), FIT_TOLERANCE,
+                                           _core.Tolerances())
+        tau = taus[0]
+        assert solves >= 1
         true_tau, taus, gaps = first_true_touch([sa, sb], boxes)
         if np.isnan(tau):
             misses += 1

@@ -287,18 +287,20 @@ Out<int64_t, -1, 2> py_candidate_pairs(const PathRows &rows, int64_t n_fast, con
     return Out<int64_t, -1, 2>(out, {pairs.size(), 2}, owner);
 }
 
-Out<double, -1> py_first_touches(const PathRows &rows, const Index<-1, 2> &pairs, double fit_tolerance,
-                                 const Tolerances &tol) {
+// (first touch of each pair, NaN where none; solver calls made).
+nb::tuple py_first_touches(const PathRows &rows, const Index<-1, 2> &pairs, double fit_tolerance,
+                           const Tolerances &tol) {
     const size_t n = pairs.shape(0);
     for (size_t k = 0; k < 2 * n; ++k) check_index(pairs.data()[k], rows.shape(0), "row");
     auto [out, owner] = new_buffer<double>(n);
+    long solves = 0;
     {
         nb::gil_scoped_release release;
         for (size_t k = 0; k < n; ++k)
             out[k] = first_touch(rows.data() + kPathBoxSize * pairs.data()[2 * k],
-                                 rows.data() + kPathBoxSize * pairs.data()[2 * k + 1], fit_tolerance, tol);
+                                 rows.data() + kPathBoxSize * pairs.data()[2 * k + 1], fit_tolerance, tol, solves);
     }
-    return Out<double, -1>(out, {n}, owner);
+    return nb::make_tuple(Out<double, -1>(out, {n}, owner), solves);
 }
 
 // (coeffs (3, 4, 4), error bound) of one box's path over [lo, hi].

@@ -234,13 +234,15 @@ bool finite_row(const double *box) {
 
 }  // namespace
 
-double first_touch(const double *box_a, const double *box_b, double fit_tolerance, const Tolerances &tol) {
+double first_touch(const double *box_a, const double *box_b, double fit_tolerance, const Tolerances &tol,
+                   long &solves) {
     if (!finite_row(box_a) || !finite_row(box_b)) return kNaN;
     const int n = std::max(fit_pieces(box_a, fit_tolerance), fit_pieces(box_b, fit_tolerance));
     for (int k = 0; k < n; ++k) {  // pieces in order: the first that touches has the first touch
         const double lo = double(k) / n, hi = double(k + 1) / n;
         const FittedBox a(box_a, lo, hi, 0.0), b(box_b, lo, hi, 0.0);
         const Hit h = Problem(a.input(), b.input(), 0.0, 1.0, tol).solve(false);
+        ++solves;
         if (h.hit) return lo + h.t * (hi - lo);
     }
     return kNaN;
