@@ -73,7 +73,24 @@ std::string feature_name(const std::array<int8_t, 3> &signs) {
 }
 
 const char *kKind[3] = {"OV", "VO", "EE"};
-const char *facet_kind(int facet) { return kKind[facet < 6 ? 0 : facet < 12 ? 1 : 2]; }
+int kind_index(int facet) { return facet < 6 ? 0 : facet < 12 ? 1 : 2; }
+const char *facet_kind(int facet) { return kKind[kind_index(facet)]; }
+
+// The Python strings of the 27 feature names and 3 kinds, made once (a hit then
+// allocates none). Never freed: they live as long as the module.
+struct Names {
+    nb::object feature[27], kind[3];
+    Names() {
+        for (int k = 0; k < 27; ++k)
+            feature[k] = nb::str(feature_name({int8_t(k / 9 - 1), int8_t(k / 3 % 3 - 1), int8_t(k % 3 - 1)}).c_str());
+        for (int k = 0; k < 3; ++k) kind[k] = nb::str(kKind[k]);
+    }
+    const nb::object &of(const std::array<int8_t, 3> &s) const { return feature[9 * (s[0] + 1) + 3 * (s[1] + 1) + s[2] + 1]; }
+};
+const Names &names() {
+    static const Names *n = new Names;
+    return *n;
+}
 
 // A hit as (t, initial, kind, feature of A, feature of B, [point, normal] (2, 3)):
 // one array for both vectors, since each array made costs more than the solve of a
@@ -81,8 +98,9 @@ const char *facet_kind(int facet) { return kKind[facet < 6 ? 0 : facet < 12 ? 1 
 nb::tuple hit_result(const Hit &h) {
     double *d = new double[6]{h.point[0], h.point[1], h.point[2], h.normal[0], h.normal[1], h.normal[2]};
     nb::capsule owner(d, [](void *p) noexcept { delete[] static_cast<double *>(p); });
-    return nb::make_tuple(h.t, h.initial, facet_kind(h.facet), feature_name(h.feat_a), feature_name(h.feat_b),
-                          nb::ndarray<nb::numpy, double, nb::shape<2, 3>>(d, {2, 3}, owner));
+    const Names &n = names();
+    return nb::make_tuple(h.t, h.initial, n.kind[kind_index(h.facet)], n.of(h.feat_a),
+                          n.of(h.feat_b), nb::ndarray<nb::numpy, double, nb::shape<2, 3>>(d, {2, 3}, owner));
 }
 
 // A hit_result or None.
