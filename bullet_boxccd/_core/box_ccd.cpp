@@ -445,11 +445,20 @@ int Problem::best_facet(const Section &sec, double s) const {
 Problem::Axis Problem::best_axis_at(double s) const {
     std::array<double, 3> gs[6], n[15];
     double len2[6], nn2[15], pv[20];
+    Axis best;
+    for (int v = 0; v < 7; ++v) {
+        const PVec &P = v == 0 ? d_ : g_[v - 1];
+        for (int r = 0; r < 3; ++r) {
+            const Poly &p = P.x[r];
+            best.val[v][r] = eval2(p, s);
+            best.der[v][r] = p.c[1] + 2.0 * p.c[2] * s;
+        }
+    }
     for (int g = 0; g < 6; ++g) {
-        gs[g] = g_[g].at2(s);
+        gs[g] = best.val[g + 1];
         len2[g] = gs[g][0] * gs[g][0] + gs[g][1] * gs[g][1] + gs[g][2] * gs[g][2];
     }
-    const std::array<double, 3> ds = d_.at2(s);
+    const std::array<double, 3> &ds = best.val[0];
 #pragma GCC unroll 15
     for (int ax = 0; ax < 15; ++ax) {
         const std::array<double, 3> &a = gs[axis_generator(ax, 0)], &b = gs[axis_generator(ax, 1)];
@@ -478,7 +487,6 @@ Problem::Axis Problem::best_axis_at(double s) const {
         }
         gap[ax] = v;
     }
-    Axis best;
     int best_ax = -1;
     double best_gap2 = 0.0;  // (gap / |n|)^2 of the best
     for (int ax = 0; ax < 15; ++ax) {
@@ -501,18 +509,14 @@ bool Problem::apart_on_fixed_axis(double lo, double hi, const Axis &at_lo, const
     const double margin = tol_.gap_rel * size_ + tol_.rounding * kEps * (dmag_ + hmag_);
     if (at_lo.gap <= margin && at_hi.gap <= margin) return false;
     // Bernstein control points on [lo, hi] of d (v = 0) and the generators
-    // (v = 1..6), shared by both candidate axes: ctrl[v][k] is a point in R^3.
+    // (v = 1..6), shared by both candidate axes: the values at the ends and the
+    // tangent at lo, ctrl[v][k] a point in R^3 (the curves are quadratic).
     const double half_w = 0.5 * (hi - lo);
     std::array<double, 3> ctrl[7][3];
     for (int v = 0; v < 7; ++v) {
-        const PVec &P = v == 0 ? d_ : g_[v - 1];
-        for (int r = 0; r < 3; ++r) {
-            const Poly &p = P.x[r];
-            const double p_lo = eval2(p, lo);
-            ctrl[v][0][r] = p_lo;
-            ctrl[v][1][r] = p_lo + half_w * (p.c[1] + 2.0 * p.c[2] * lo);
-            ctrl[v][2][r] = eval2(p, hi);
-        }
+        ctrl[v][0] = at_lo.val[v];
+        ctrl[v][2] = at_hi.val[v];
+        for (int r = 0; r < 3; ++r) ctrl[v][1][r] = at_lo.val[v][r] + half_w * at_lo.der[v][r];
     }
     auto dot3 = [](const std::array<double, 3> &u, const std::array<double, 3> &x) {
         return u[0] * x[0] + u[1] * x[1] + u[2] * x[2];

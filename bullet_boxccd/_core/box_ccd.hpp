@@ -148,9 +148,14 @@ private:
     Section make_section(double lo, double hi) const;
     const Poly &facet_poly(const Section &sec, int facet) const;
     void facet_values(const Section &sec, double s, double *q) const;  // Q_k(s), k < 30
+    // A sample time of the culling: the most separating axis there (unit u and
+    // its gap; gap 0: none separates), and d and the generators (v = 0 and
+    // 1..6) with their derivatives there, from which the Bernstein control
+    // points of a piece between two samples follow without evaluating anything.
     struct Axis {
         std::array<double, 3> u{};
         double gap = 0.0;
+        std::array<double, 3> val[7], der[7];
     };
     Axis best_axis_at(double s) const;
     bool apart_on_fixed_axis(double lo, double hi, const Axis &at_lo, const Axis &at_hi) const;
