@@ -178,6 +178,10 @@ void Problem::build_facet_terms() const {
             proj_[9 + 3 * i + l] = dot_by_degree(n_[3 + i], normal_degree(3 + i), g_[l], gdeg_[l]);
         }
     for (Poly &q : proj_) trim(q);  // constant under pure translation
+    for (int k = 0; k < 18; ++k) {
+        slope_[k] = 0.0;
+        for (int i = 1; i <= proj_[k].deg; ++i) slope_[k] += i * std::fabs(proj_[k].c[i]);
+    }
     for (Poly &q : nd_) trim(q);
     terms_built_ = true;
 }
@@ -255,17 +259,28 @@ bool Problem::ignorable_switch(int k) const {
     return true;
 }
 
-Problem::Switches Problem::first_switches(double from) const {
+// The first sign change of switch polynomial k in (from, to], kNone if none.
+// A short interval is first tried with the cheapest proof of a constant sign:
+// |p(mid)| beyond the slope bound times the half width, plus a bound of the
+// rounding of p(mid) (Horner on degree <= 6: about 12 eps sum |c_i|, doubled).
+double Problem::next_switch(int k, double from, double to) const {
+    if (!(from < to)) return kNone;
+    const Poly &p = proj_[k];
+    const double mid = 0.5 * (from + to);
+    if (std::fabs(p(mid)) > slope_[k] * 0.5 * (to - from) + 32.0 * kEps * p.magnitude()) return kNone;
+    const double r = first_sign_change(p, from, to);
+    return std::isnan(r) ? kNone : r;
+}
+
+Problem::Switches Problem::first_switches(double from, double to) const {
     Switches sw;
-    for (int k = 0; k < 18; ++k) {
-        const double r = ignorable_switch(k) ? kNone : first_sign_change(proj_[k], from, 1.0);
-        sw.next[k] = std::isnan(r) ? kNone : r;
-    }
+    sw.to = to;
+    for (int k = 0; k < 18; ++k) sw.next[k] = ignorable_switch(k) ? kNone : next_switch(k, from, to);
     return sw;
 }
 
 double Problem::Switches::boundary() const {
-    double b = 1.0;
+    double b = to;
     for (double r : next) b = std::min(b, r);
     return b;
 }
@@ -273,11 +288,8 @@ double Problem::Switches::boundary() const {
 void Problem::pass(Switches &sw, double boundary) const {
     // Sign changes within a few doubles of the one just passed are the same switch.
     const double from = boundary + 4.0 * kRootWidth;
-    for (int k = 0; k < 18; ++k) {
-        if (sw.next[k] > boundary) continue;
-        const double r = from < 1.0 ? first_sign_change(proj_[k], from, 1.0) : kNone;
-        sw.next[k] = std::isnan(r) ? kNone : r;
-    }
+    for (int k = 0; k < 18; ++k)
+        if (sw.next[k] <= boundary) sw.next[k] = next_switch(k, from, sw.to);
 }
 
 std::vector<double> Problem::sections() const {
@@ -538,15 +550,21 @@ bool Problem::apart_on_fixed_axis(double lo, double hi, const Axis &at_lo, const
 // The start of the first piece of [lo, hi] (halved `depth` times) that no fixed
 // axis proves apart; NaN if every piece is proven apart. `budget` caps the new
 // sample times (best_axis_at calls): once spent, an unproven piece is not split.
+// If no axis separates at the end of that piece (the boxes overlap there, up to
+// rounding), `overlap` is set to it: the first contact lies within the piece.
 double Problem::first_unproven(double lo, double hi, const Axis &at_lo, const Axis &at_hi, int depth,
-                               int &budget) const {
+                               int &budget, double &overlap) const {
     if (apart_on_fixed_axis(lo, hi, at_lo, at_hi)) return std::numeric_limits<double>::quiet_NaN();
-    if (depth == 0 || budget == 0) return lo;
+    if (at_lo.gap == 0.0) return lo;  // overlapping at lo: no fixed axis proves any piece from lo apart
+    if (depth == 0 || budget == 0) {
+        if (at_hi.gap == 0.0) overlap = hi;
+        return lo;
+    }
     --budget;
     const double mid = 0.5 * (lo + hi);
     const Axis at_mid = best_axis_at(mid);
-    const double s = first_unproven(lo, mid, at_lo, at_mid, depth - 1, budget);
-    return std::isnan(s) ? first_unproven(mid, hi, at_mid, at_hi, depth - 1, budget) : s;
+    const double s = first_unproven(lo, mid, at_lo, at_mid, depth - 1, budget, overlap);
+    return std::isnan(s) ? first_unproven(mid, hi, at_mid, at_hi, depth - 1, budget, overlap) : s;
 }
 
 Hit Problem::solve(bool want_geometry) const {
@@ -556,11 +574,15 @@ Hit Problem::solve(bool want_geometry) const {
     // facets), so their culling goes deeper than that of translating ones.
     const bool turning = gdeg_[0] | gdeg_[1] | gdeg_[2] | gdeg_[3] | gdeg_[4] | gdeg_[5];
     int budget = kCullBudget;
+    double overlap = 1.0;
     const double start = first_unproven(0.0, 1.0, best_axis_at(0.0), best_axis_at(1.0),
-                                        turning ? kCullDepthTurning : kCullDepth, budget);
+                                        turning ? kCullDepthTurning : kCullDepth, budget, overlap);
     if (std::isnan(start)) return hit;
     build_facet_terms();
-    Switches sw = first_switches(start);
+    // The search ends where the culling saw the boxes overlap: only the octant
+    // switches before it matter. If rounding fooled that sample and nothing
+    // touches before it, the search goes on from there to the end.
+    Switches sw = first_switches(start, overlap);
     int last = -1, separating = -1;
     for (double lo = start;;) {
         const double hi = sw.boundary();
@@ -579,7 +601,8 @@ Hit Problem::solve(bool want_geometry) const {
             return hit;
         }
         if (hi >= 1.0) return hit;
-        pass(sw, hi);
+        if (hi >= sw.to) sw = first_switches(hi);
+        else pass(sw, hi);
         lo = hi;
     }
 }

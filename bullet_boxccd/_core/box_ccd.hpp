@@ -140,10 +140,12 @@ private:
     // its next sign change after the last boundary passed (+inf: none).
     struct Switches {
         std::array<double, 18> next;
-        double boundary() const;         // the next section end (1 at the latest)
+        double to = 1.0;                 // where the search ends
+        double boundary() const;         // the next section end (`to` at the latest)
     };
     bool ignorable_switch(int k) const;
-    Switches first_switches(double from) const;
+    double next_switch(int k, double from, double to) const;
+    Switches first_switches(double from, double to = 1.0) const;
     void pass(Switches &sw, double boundary) const;
     Section make_section(double lo, double hi) const;
     const Poly &facet_poly(const Section &sec, int facet) const;
@@ -159,7 +161,8 @@ private:
     };
     Axis best_axis_at(double s) const;
     bool apart_on_fixed_axis(double lo, double hi, const Axis &at_lo, const Axis &at_hi) const;
-    double first_unproven(double lo, double hi, const Axis &at_lo, const Axis &at_hi, int depth, int &budget) const;
+    double first_unproven(double lo, double hi, const Axis &at_lo, const Axis &at_hi, int depth, int &budget,
+                          double &overlap) const;
     // Pieces (2^depth at most) and new sample times per query, measured best on
     // the benchmark pairs (benchmarks/solver.py).
     static constexpr int kCullDepth = 2, kCullDepthTurning = 6, kCullBudget = 8;
@@ -190,6 +193,7 @@ private:
     mutable Poly proj_[20];
     mutable Poly nd_[15];
     mutable double noise_[15];  // rounding allowance of each axis' facets
+    mutable double slope_[18];  // sum i |c_i| of each switch polynomial: bounds |p'| on [0, 1]
     mutable bool terms_built_ = false;
 };
 
