@@ -293,7 +293,11 @@ Out<int64_t, -1, 2> py_candidate_pairs(const PathRows &rows, int64_t n_fast, con
                                        const Index<-1> &frame_body, const nb::ndarray<const uint8_t, nb::shape<-1>,
                                        nb::c_contig, nb::device::cpu> &frame_flags) {
     const int64_t n = int64_t(rows.shape(0));
-    if (frame.shape(0) != size_t(n) || n_fast < 0 || n_fast > n) throw nb::value_error("bad row counts");
+    if (frame.shape(0) != size_t(n) || n_fast < 0 || n_fast > n)
+        throw nb::value_error(("candidate_pairs: " + std::to_string(n) + " rows, " + std::to_string(frame.shape(0)) +
+                               " frames and n_fast = " + std::to_string(n_fast) +
+                               "; expected one frame per row and 0 <= n_fast <= rows")
+                                  .c_str());
     if (frame_flags.shape(0) != frame_body.shape(0)) throw nb::value_error("frame tables differ in length");
     for (int64_t i = 0; i < n; ++i) check_index(frame.data()[i], frame_body.shape(0), "frame");
     const auto pairs = candidate_pairs(rows.data(), n, n_fast, frame.data(), frame_body.data(), frame_flags.data());
