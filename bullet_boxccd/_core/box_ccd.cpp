@@ -452,20 +452,31 @@ int Problem::best_facet(const Section &sec, double s) const {
 // when the control points of u.d share a sign. Candidates: the most separating
 // of the 15 axes at lo and at hi (computed once per sample time). The bound only
 // ever proves pairs apart that are apart by more than the touching tolerance, so
-// it changes speed, never answers.
-// The most separating of the 15 axes at s (unit), and its separation; 0 if none separates.
-Problem::Axis Problem::best_axis_at(double s) const {
-    std::array<double, 3> gs[6], n[15];
-    double len2[6], nn2[15], pv[20];
-    Axis best;
+// it changes speed, and contact times only within that tolerance.
+Problem::Axis Problem::sample_at(double s) const {
+    Axis a;
     for (int v = 0; v < 7; ++v) {
         const PVec &P = v == 0 ? d_ : g_[v - 1];
         for (int r = 0; r < 3; ++r) {
             const Poly &p = P.x[r];
-            best.val[v][r] = eval2(p, s);
-            best.der[v][r] = p.c[1] + 2.0 * p.c[2] * s;
+            a.val[v][r] = eval2(p, s);
+            a.der[v][r] = p.c[1] + 2.0 * p.c[2] * s;
         }
     }
+    return a;
+}
+
+Problem::Axis Problem::best_axis_at(double s) const {
+    Axis best = sample_at(s);
+    find_axis(best);
+    return best;
+}
+
+// The most separating of the 15 axes at the sample's time (unit u) and its
+// separation; gap 0 if none separates (the boxes overlap there).
+void Problem::find_axis(Axis &best) const {
+    std::array<double, 3> gs[6], n[15];
+    double len2[6], nn2[15], pv[20];
     for (int g = 0; g < 6; ++g) {
         gs[g] = best.val[g + 1];
         len2[g] = gs[g][0] * gs[g][0] + gs[g][1] * gs[g][1] + gs[g][2] * gs[g][2];
@@ -514,7 +525,6 @@ Problem::Axis Problem::best_axis_at(double s) const {
         best.gap = gap[best_ax] / nn;
         best.u = {n[best_ax][0] / nn, n[best_ax][1] / nn, n[best_ax][2] / nn};
     }
-    return best;
 }
 
 bool Problem::apart_on_fixed_axis(double lo, double hi, const Axis &at_lo, const Axis &at_hi) const {
@@ -575,8 +585,14 @@ Hit Problem::solve(bool want_geometry) const {
     const bool turning = gdeg_[0] | gdeg_[1] | gdeg_[2] | gdeg_[3] | gdeg_[4] | gdeg_[5];
     int budget = kCullBudget;
     double overlap = 1.0;
-    const double start = first_unproven(0.0, 1.0, best_axis_at(0.0), best_axis_at(1.0),
-                                        turning ? kCullDepthTurning : kCullDepth, budget, overlap);
+    // The axis at the range's end is searched only if the one at its start
+    // cannot keep the whole range apart on its own.
+    const Axis at0 = best_axis_at(0.0);
+    Axis at1 = sample_at(1.0);
+    if (apart_on_fixed_axis(0.0, 1.0, at0, at1)) return hit;
+    find_axis(at1);
+    const double start =
+        first_unproven(0.0, 1.0, at0, at1, turning ? kCullDepthTurning : kCullDepth, budget, overlap);
     if (std::isnan(start)) return hit;
     build_facet_terms();
     // The search ends where the culling saw the boxes overlap: only the octant

@@ -159,7 +159,9 @@ private:
         double gap = 0.0;
         std::array<double, 3> val[7], der[7];
     };
-    Axis best_axis_at(double s) const;
+    Axis sample_at(double s) const;     // values and derivatives only (gap 0: no axis yet)
+    void find_axis(Axis &a) const;      // the most separating of the 15 axes at a's time
+    Axis best_axis_at(double s) const;  // both
     bool apart_on_fixed_axis(double lo, double hi, const Axis &at_lo, const Axis &at_hi) const;
     double first_unproven(double lo, double hi, const Axis &at_lo, const Axis &at_hi, int depth, int &budget,
                           double &overlap) const;
