@@ -164,10 +164,9 @@ Problem::Problem(const BoxInput &a, const BoxInput &b, double t0_, double t1_, c
 
 void Problem::build_facet_terms() const {
     if (terms_built_) return;
-    for (int ax = 0; ax < 15; ++ax) {
+    for (int ax : {1, 2, 4, 5}) {  // the face normals (0 and 3 come with the problem)
         const int ga = axis_generator(ax, 0), gb = axis_generator(ax, 1);
-        if (ax != 0 && ax != 3) n_[ax] = cross_by_degree(g_[ga], gdeg_[ga], g_[gb], gdeg_[gb]);
-        nd_[ax] = dot_by_degree(n_[ax], normal_degree(ax), d_, ddeg_);
+        n_[ax] = cross_by_degree(g_[ga], gdeg_[ga], g_[gb], gdeg_[gb]);
     }
     for (int ax = 0; ax < 15; ++ax)
         noise_[ax] = tol_.rounding * kEps * (dmag_ + hmag_) * gmag_[axis_generator(ax, 0)] *
@@ -182,8 +181,21 @@ void Problem::build_facet_terms() const {
         slope_[k] = 0.0;
         for (int i = 1; i <= proj_[k].deg; ++i) slope_[k] += i * std::fabs(proj_[k].c[i]);
     }
-    for (Poly &q : nd_) trim(q);
     terms_built_ = true;
+}
+
+// The normal of an edge-edge axis and n.d of any axis, as polynomials: built
+// when a facet of the axis is root-searched or its geometry is asked for
+// (facet values take n.d from the vectors at s instead).
+void Problem::ensure_normal(int ax) const {
+    if (nd_built_ & (1u << ax)) return;
+    if (ax >= 6) {
+        const int ga = axis_generator(ax, 0), gb = axis_generator(ax, 1);
+        n_[ax] = cross_by_degree(g_[ga], gdeg_[ga], g_[gb], gdeg_[gb]);
+    }
+    nd_[ax] = dot_by_degree(n_[ax], normal_degree(ax), d_, ddeg_);
+    trim(nd_[ax]);
+    nd_built_ |= 1u << ax;
 }
 
 // The projection n_axis . g as one of the 20 shared polynomials (or a
@@ -345,6 +357,7 @@ const Poly &Problem::facet_poly(const Section &sec, int facet) const {
     if (!(sec.built & (1u << facet))) {
         const int ax = facet / 2;
         ensure_axis(sec, ax);
+        ensure_normal(ax);
         Poly H{};
         for (int g = 0; g < 6; ++g) {
             if (!sec.sig[ax][g]) continue;
@@ -359,10 +372,14 @@ const Poly &Problem::facet_poly(const Section &sec, int facet) const {
     return sec.Q[facet];
 }
 
-// All 30 Q_k(s) from the 35 shared polynomials, without building any facet.
+// All 30 Q_k(s) from the 20 shared projection polynomials and the vectors at
+// s (n.d of each axis from its two generators), without building any facet.
 void Problem::facet_values(const Section &sec, double s, double *q) const {
     double pv[20];
     for (int i = 0; i < 20; ++i) pv[i] = proj_[i](s);
+    std::array<double, 3> gs[6];
+    for (int g = 0; g < 6; ++g) gs[g] = g_[g].at2(s);
+    const std::array<double, 3> ds = d_.at2(s);
     for (int ax = 0; ax < 15; ++ax) {
         ensure_axis(sec, ax);
         double H = 0.0;
@@ -371,7 +388,9 @@ void Problem::facet_values(const Section &sec, double s, double *q) const {
             const Projection pr = kProjection.p[ax][g];
             H += sec.sig[ax][g] * pr.sign * h_[g] * pv[pr.index];
         }
-        const double nd = nd_[ax](s);
+        const std::array<double, 3> &a = gs[axis_generator(ax, 0)], &b = gs[axis_generator(ax, 1)];
+        const double nd = (a[1] * b[2] - a[2] * b[1]) * ds[0] + (a[2] * b[0] - a[0] * b[2]) * ds[1] +
+                          (a[0] * b[1] - a[1] * b[0]) * ds[2];
         q[2 * ax] = nd - H - sec.tau[ax];
         q[2 * ax + 1] = -nd - H - sec.tau[ax];
     }
@@ -631,6 +650,7 @@ static inline int facet_sign(const int8_t sig[6], int facet, int g) {
 void Problem::contact_geometry(const Section &sec, Hit &hit) const {
     const int ax = hit.facet / 2;
     ensure_axis(sec, ax);
+    ensure_normal(ax);
     const double s = hit.s;
     std::array<double, 3> n = n_[ax](s), cA = cA_(s), cB = cB_(s);
     std::array<double, 3> gv[6];
@@ -682,6 +702,7 @@ void Problem::planes(double s, double *normals, double *offsets, int8_t *feat_a,
     facet_values(sec, s, q);
     for (int k = 0; k < 30; ++k) {
         const int ax = k / 2;
+        ensure_normal(ax);
         const double sgn = k % 2 == 0 ? 1.0 : -1.0;
         const std::array<double, 3> n = n_[ax](s);
         const double nn = norm3(n);

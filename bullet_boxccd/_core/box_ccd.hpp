@@ -188,8 +188,9 @@ private:
     double dmag_, hmag_;
     double size_;  // world size used by gap_rel
     // Cofactor terms; n_[0], n_[3] and det_ are built with the problem (the
-    // regularity check needs them), the rest on first use (a pair that a
-    // fixed axis keeps apart never needs them).
+    // regularity check needs them), the face normals and projections on first
+    // use (a pair that a fixed axis keeps apart never needs them), edge-edge
+    // normals and nd_ per axis when one of its facets is root-searched.
     // proj_[9q + 3i + l] = S[q][i][l] (see the file comment), proj_[18 + q] = det.
     mutable PVec n_[15];
     mutable Poly proj_[20];
@@ -197,6 +198,8 @@ private:
     mutable double noise_[15];  // rounding allowance of each axis' facets
     mutable double slope_[18];  // sum i |c_i| of each switch polynomial: bounds |p'| on [0, 1]
     mutable bool terms_built_ = false;
+    mutable uint32_t nd_built_ = 0;  // which nd_ (and edge-edge n_) are built
+    void ensure_normal(int ax) const;
 };
 
 constexpr int kDet = 18;                   // proj_[kDet + q] is det A (q = 0) or det B (q = 1)
