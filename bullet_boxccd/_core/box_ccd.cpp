@@ -494,6 +494,7 @@ Problem::Axis Problem::best_axis_at(double s) const {
 // The most separating of the 15 axes at the sample's time (unit u) and its
 // separation; gap 0 if none separates (the boxes overlap there).
 void Problem::find_axis(Axis &best) const {
+    best.searched = true;
     std::array<double, 3> gs[6], n[15];
     double len2[6], nn2[15], pv[20];
     for (int g = 0; g < 6; ++g) {
@@ -546,9 +547,12 @@ void Problem::find_axis(Axis &best) const {
     }
 }
 
-bool Problem::apart_on_fixed_axis(double lo, double hi, const Axis &at_lo, const Axis &at_hi) const {
+bool Problem::apart_on_fixed_axis(double lo, double hi, const Axis &at_lo, const Axis &at_hi, bool use_lo,
+                                  bool use_hi) const {
     const double margin = tol_.gap_rel * size_ + tol_.rounding * kEps * (dmag_ + hmag_);
-    if (at_lo.gap <= margin && at_hi.gap <= margin) return false;
+    use_lo = use_lo && at_lo.gap > margin;
+    use_hi = use_hi && at_hi.gap > margin && !(use_lo && at_hi.u == at_lo.u);
+    if (!use_lo && !use_hi) return false;
     // Bernstein control points on [lo, hi] of d (v = 0) and the generators
     // (v = 1..6), shared by both candidate axes: the values at the ends and the
     // tangent at lo, ctrl[v][k] a point in R^3 (the curves are quadratic).
@@ -563,7 +567,7 @@ bool Problem::apart_on_fixed_axis(double lo, double hi, const Axis &at_lo, const
         return u[0] * x[0] + u[1] * x[1] + u[2] * x[2];
     };
     for (const Axis *axis : {&at_lo, &at_hi}) {
-        if (axis->gap <= margin || (axis == &at_hi && at_hi.u == at_lo.u && at_lo.gap > margin)) continue;
+        if (!(axis == &at_lo ? use_lo : use_hi)) continue;
         const std::array<double, 3> &u = axis->u;
         const double bd[3] = {dot3(u, ctrl[0][0]), dot3(u, ctrl[0][1]), dot3(u, ctrl[0][2])};
         if (!((bd[0] > 0 && bd[1] > 0 && bd[2] > 0) || (bd[0] < 0 && bd[1] < 0 && bd[2] < 0))) continue;
@@ -577,13 +581,19 @@ bool Problem::apart_on_fixed_axis(double lo, double hi, const Axis &at_lo, const
 }
 
 // The start of the first piece of [lo, hi] (halved `depth` times) that no fixed
-// axis proves apart; NaN if every piece is proven apart. `budget` caps the new
-// sample times (best_axis_at calls): once spent, an unproven piece is not split.
+// axis proves apart; NaN if every piece is proven apart. A sample's own axis is
+// searched only when the axes already found cannot prove its piece apart.
+// `budget` caps the new sample times: once spent, an unproven piece is not split.
 // If no axis separates at the end of that piece (the boxes overlap there, up to
 // rounding), `overlap` is set to it: the first contact lies within the piece.
-double Problem::first_unproven(double lo, double hi, const Axis &at_lo, const Axis &at_hi, int depth,
-                               int &budget, double &overlap) const {
-    if (apart_on_fixed_axis(lo, hi, at_lo, at_hi)) return std::numeric_limits<double>::quiet_NaN();
+double Problem::first_unproven(double lo, double hi, Axis &at_lo, Axis &at_hi, int depth, int &budget,
+                               double &overlap) const {
+    const bool new_lo = !at_lo.searched, new_hi = !at_hi.searched;
+    if (apart_on_fixed_axis(lo, hi, at_lo, at_hi, true, true)) return std::numeric_limits<double>::quiet_NaN();
+    if (new_lo) find_axis(at_lo);
+    if (new_hi) find_axis(at_hi);
+    if ((new_lo || new_hi) && apart_on_fixed_axis(lo, hi, at_lo, at_hi, new_lo, new_hi))
+        return std::numeric_limits<double>::quiet_NaN();
     if (at_lo.gap == 0.0) return lo;  // overlapping at lo: no fixed axis proves any piece from lo apart
     if (depth == 0 || budget == 0) {
         if (at_hi.gap == 0.0) overlap = hi;
@@ -591,7 +601,7 @@ double Problem::first_unproven(double lo, double hi, const Axis &at_lo, const Ax
     }
     --budget;
     const double mid = 0.5 * (lo + hi);
-    const Axis at_mid = best_axis_at(mid);
+    Axis at_mid = sample_at(mid);
     const double s = first_unproven(lo, mid, at_lo, at_mid, depth - 1, budget, overlap);
     return std::isnan(s) ? first_unproven(mid, hi, at_mid, at_hi, depth - 1, budget, overlap) : s;
 }
@@ -606,10 +616,7 @@ Hit Problem::solve(bool want_geometry) const {
     double overlap = 1.0;
     // The axis at the range's end is searched only if the one at its start
     // cannot keep the whole range apart on its own.
-    const Axis at0 = best_axis_at(0.0);
-    Axis at1 = sample_at(1.0);
-    if (apart_on_fixed_axis(0.0, 1.0, at0, at1)) return hit;
-    find_axis(at1);
+    Axis at0 = best_axis_at(0.0), at1 = sample_at(1.0);
     const double start =
         first_unproven(0.0, 1.0, at0, at1, turning ? kCullDepthTurning : kCullDepth, budget, overlap);
     if (std::isnan(start)) return hit;

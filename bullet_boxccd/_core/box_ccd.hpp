@@ -157,13 +157,16 @@ private:
     struct Axis {
         std::array<double, 3> u{};
         double gap = 0.0;
+        bool searched = false;  // u and gap are set (find_axis)
         std::array<double, 3> val[7], der[7];
     };
     Axis sample_at(double s) const;     // values and derivatives only (gap 0: no axis yet)
     void find_axis(Axis &a) const;      // the most separating of the 15 axes at a's time
     Axis best_axis_at(double s) const;  // both
-    bool apart_on_fixed_axis(double lo, double hi, const Axis &at_lo, const Axis &at_hi) const;
-    double first_unproven(double lo, double hi, const Axis &at_lo, const Axis &at_hi, int depth, int &budget,
+    // Whether the axis at lo or at hi (those asked for) keeps [lo, hi] apart.
+    bool apart_on_fixed_axis(double lo, double hi, const Axis &at_lo, const Axis &at_hi, bool use_lo,
+                             bool use_hi) const;
+    double first_unproven(double lo, double hi, Axis &at_lo, Axis &at_hi, int depth, int &budget,
                           double &overlap) const;
     // Pieces (2^depth at most) and new sample times per query, measured best on
     // the benchmark pairs (benchmarks/solver.py).
