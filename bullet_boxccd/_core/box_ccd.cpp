@@ -485,12 +485,6 @@ Problem::Axis Problem::sample_at(double s) const {
     return a;
 }
 
-Problem::Axis Problem::best_axis_at(double s) const {
-    Axis best = sample_at(s);
-    find_axis(best);
-    return best;
-}
-
 // The most separating of the 15 axes at the sample's time (unit u) and its
 // separation; gap 0 if none separates (the boxes overlap there).
 void Problem::find_axis(Axis &best) const {
@@ -616,7 +610,8 @@ Hit Problem::solve(bool want_geometry) const {
     double overlap = 1.0;
     // The axis at the range's end is searched only if the one at its start
     // cannot keep the whole range apart on its own.
-    Axis at0 = best_axis_at(0.0), at1 = sample_at(1.0);
+    Axis at0 = sample_at(0.0), at1 = sample_at(1.0);
+    find_axis(at0);
     const double start =
         first_unproven(0.0, 1.0, at0, at1, turning ? kCullDepthTurning : kCullDepth, budget, overlap);
     if (std::isnan(start)) return hit;

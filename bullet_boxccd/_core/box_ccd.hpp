@@ -160,9 +160,8 @@ private:
         bool searched = false;  // u and gap are set (find_axis)
         std::array<double, 3> val[7], der[7];
     };
-    Axis sample_at(double s) const;     // values and derivatives only (gap 0: no axis yet)
-    void find_axis(Axis &a) const;      // the most separating of the 15 axes at a's time
-    Axis best_axis_at(double s) const;  // both
+    Axis sample_at(double s) const;  // values and derivatives only (gap 0: no axis yet)
+    void find_axis(Axis &a) const;   // the most separating of the 15 axes at a's time
     // Whether the axis at lo or at hi (those asked for) keeps [lo, hi] apart.
     bool apart_on_fixed_axis(double lo, double hi, const Axis &at_lo, const Axis &at_hi, bool use_lo,
                              bool use_hi) const;
