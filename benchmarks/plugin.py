@@ -87,6 +87,7 @@ import os
 import platform
 import statistics
 import subprocess
+import sys
 import time
 
 import numpy as np
@@ -94,6 +95,9 @@ import pybullet as p
 from tqdm import tqdm
 
 from bullet_boxccd import BoxCCD
+
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "demos"))
+from _common import print_table  # noqa: E402  (the demos' markdown table)
 
 DT = 1.0 / 240.0
 HALF = 0.05  # half extent of every dynamic cube
@@ -240,15 +244,6 @@ def _code_version():
     except (OSError, subprocess.CalledProcessError):
         return "unknown (no git)"
     return head + (" + uncommitted changes in bullet_boxccd/" if dirty else "")
-
-
-def print_table(title, header, rows):
-    widths = [max(len(str(x)) for x in col) for col in zip(header, *rows)]
-    print(f"\n{title}")
-    print("| " + " | ".join(str(h).ljust(w) for h, w in zip(header, widths)) + " |")
-    print("|" + "|".join("-" * (w + 2) for w in widths) + "|")
-    for r in rows:
-        print("| " + " | ".join(str(x).ljust(w) for x, w in zip(r, widths)) + " |")
 
 
 def main(argv=None):

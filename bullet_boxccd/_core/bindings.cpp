@@ -24,6 +24,15 @@ using Vec3 = In<3>;
 using Coeffs = In<3, 4, 4>;
 using Vec3N = In<-1, 3>;
 using CoeffsN = In<-1, 3, 4, 4>;
+template <class T, long... Shape>
+using Out = nb::ndarray<nb::numpy, T, nb::shape<Shape...>>;
+
+// A new buffer of n elements, owned by the returned capsule (the output array's owner).
+template <class T>
+std::pair<T *, nb::capsule> new_buffer(size_t n) {
+    T *d = new T[n ? n : 1];
+    return {d, nb::capsule(d, [](void *q) noexcept { delete[] static_cast<T *>(q); })};
+}
 
 struct InputErrorTag : std::runtime_error {  // the base class only; never thrown
     using std::runtime_error::runtime_error;
@@ -74,7 +83,6 @@ std::string feature_name(const std::array<int8_t, 3> &signs) {
 
 const char *kKind[3] = {"OV", "VO", "EE"};
 int kind_index(int facet) { return facet < 6 ? 0 : facet < 12 ? 1 : 2; }
-const char *facet_kind(int facet) { return kKind[kind_index(facet)]; }
 
 // The Python strings of the 27 feature names and 3 kinds, made once (a hit then
 // allocates none). Never freed: they live as long as the module.
@@ -96,11 +104,12 @@ const Names &names() {
 // one array for both vectors, since each array made costs more than the solve of a
 // simple pair.
 nb::tuple hit_result(const Hit &h) {
-    double *d = new double[6]{h.point[0], h.point[1], h.point[2], h.normal[0], h.normal[1], h.normal[2]};
-    nb::capsule owner(d, [](void *p) noexcept { delete[] static_cast<double *>(p); });
+    auto [d, owner] = new_buffer<double>(6);
+    std::copy(h.point.begin(), h.point.end(), d);
+    std::copy(h.normal.begin(), h.normal.end(), d + 3);
     const Names &n = names();
-    return nb::make_tuple(h.t, h.initial, n.kind[kind_index(h.facet)], n.of(h.feat_a),
-                          n.of(h.feat_b), nb::ndarray<nb::numpy, double, nb::shape<2, 3>>(d, {2, 3}, owner));
+    return nb::make_tuple(h.t, h.initial, n.kind[kind_index(h.facet)], n.of(h.feat_a), n.of(h.feat_b),
+                          Out<double, 2, 3>(d, {2, 3}, owner));
 }
 
 // A hit_result or None.
@@ -114,9 +123,8 @@ nb::object solve(const BoxData &a, const MotionData &m_a, const BoxData &b, cons
 
 // Validates every row (raising for the first bad one, naming all bad rows),
 // then solves with the GIL released. Output: contact t, NaN where none.
-nb::ndarray<nb::numpy, double, nb::shape<-1>> solve_batch(const Vec3N &lo_a, const Vec3N &hi_a, const CoeffsN &c_a,
-                                                         const Vec3N &lo_b, const Vec3N &hi_b, const CoeffsN &c_b,
-                                                         double t0, double t1, const Tolerances &tol) {
+Out<double, -1> solve_batch(const Vec3N &lo_a, const Vec3N &hi_a, const CoeffsN &c_a, const Vec3N &lo_b,
+                            const Vec3N &hi_b, const CoeffsN &c_b, double t0, double t1, const Tolerances &tol) {
     check_time_range(t0, t1);
     const size_t n = lo_a.shape(0);
     std::vector<size_t> bad;
@@ -127,8 +135,7 @@ nb::ndarray<nb::numpy, double, nb::shape<-1>> solve_batch(const Vec3N &lo_a, con
         if (bad.empty()) { first_msg = msg; first_kind = kind; first_t = t; }
         bad.push_back(i);
     };
-    double *out = new double[n];
-    nb::capsule owner(out, [](void *p) noexcept { delete[] static_cast<double *>(p); });
+    auto [out, owner] = new_buffer<double>(n);
     {
         nb::gil_scoped_release release;
         for (size_t i = 0; i < n; ++i) {
@@ -166,18 +173,16 @@ nb::ndarray<nb::numpy, double, nb::shape<-1>> solve_batch(const Vec3N &lo_a, con
             default: throw SingularMotionError(msg, first_t);
         }
     }
-    return nb::ndarray<nb::numpy, double, nb::shape<-1>>(out, {n}, owner);
+    return Out<double, -1>(out, {n}, owner);
 }
 
-nb::ndarray<nb::numpy, double, nb::shape<-1>> sections(const BoxData &a, const MotionData &m_a, const BoxData &b,
-                                                       const MotionData &m_b, double t0, double t1,
-                                                       const Tolerances &tol) {
+Out<double, -1> sections(const BoxData &a, const MotionData &m_a, const BoxData &b, const MotionData &m_b, double t0,
+                         double t1, const Tolerances &tol) {
     const Problem p = make_problem(a, m_a, b, m_b, t0, t1, tol);
     const std::vector<double> s = p.sections();
-    double *out = new double[s.size()];
-    nb::capsule owner(out, [](void *q) noexcept { delete[] static_cast<double *>(q); });
+    auto [out, owner] = new_buffer<double>(s.size());
     for (size_t i = 0; i < s.size(); ++i) out[i] = s[i] >= 1.0 ? t1 : t0 + s[i] * (t1 - t0);
-    return nb::ndarray<nb::numpy, double, nb::shape<-1>>(out, {s.size()}, owner);
+    return Out<double, -1>(out, {s.size()}, owner);
 }
 
 // (normals (30, 3), offsets (30,), [(kind, feature of A, feature of B)] * 30).
@@ -187,17 +192,16 @@ nb::tuple planes(const BoxData &a, const MotionData &m_a, const BoxData &b, cons
     if (!(t >= t0 && t <= t1))
         throw TimeRangeError("t = " + std::to_string(t) + " lies outside t_range = (" + std::to_string(t0) + ", " +
                              std::to_string(t1) + ")");
-    double *nrm = new double[90], *off = new double[30];
-    nb::capsule own_n(nrm, [](void *q) noexcept { delete[] static_cast<double *>(q); });
-    nb::capsule own_o(off, [](void *q) noexcept { delete[] static_cast<double *>(q); });
+    auto [nrm, own_n] = new_buffer<double>(90);
+    auto [off, own_o] = new_buffer<double>(30);
     int8_t fa[90], fb[90];
     p.planes((t - t0) / (t1 - t0), nrm, off, fa, fb);
+    const Names &n = names();
     nb::list features;
     for (int k = 0; k < 30; ++k)
-        features.append(nb::make_tuple(facet_kind(k), feature_name({fa[3 * k], fa[3 * k + 1], fa[3 * k + 2]}),
-                                       feature_name({fb[3 * k], fb[3 * k + 1], fb[3 * k + 2]})));
-    return nb::make_tuple(nb::ndarray<nb::numpy, double, nb::shape<30, 3>>(nrm, {30, 3}, own_n),
-                          nb::ndarray<nb::numpy, double, nb::shape<30>>(off, {30}, own_o), features);
+        features.append(nb::make_tuple(n.kind[kind_index(k)], n.of({fa[3 * k], fa[3 * k + 1], fa[3 * k + 2]}),
+                                       n.of({fb[3 * k], fb[3 * k + 1], fb[3 * k + 2]})));
+    return nb::make_tuple(Out<double, 30, 3>(nrm, {30, 3}, own_n), Out<double, 30>(off, {30}, own_o), features);
 }
 
 // ---------------------------------------------------------------- step paths
@@ -209,15 +213,6 @@ using PathRows = In<-1, kPathBoxSize>;
 using States = In<-1, kFrameStateSize>;
 template <long... Shape>
 using Index = nb::ndarray<const int64_t, nb::shape<Shape...>, nb::c_contig, nb::device::cpu>;
-template <class T, long... Shape>
-using Out = nb::ndarray<nb::numpy, T, nb::shape<Shape...>>;
-
-// A new array of n * width elements owned by the returned capsule.
-template <class T>
-std::pair<T *, nb::capsule> new_buffer(size_t n) {
-    T *d = new T[n ? n : 1];
-    return {d, nb::capsule(d, [](void *q) noexcept { delete[] static_cast<T *>(q); })};
-}
 
 void check_index(int64_t i, size_t n, const char *what) {
     if (i < 0 || size_t(i) >= n)

@@ -19,7 +19,12 @@ std::string num(double v) {
 
 const char *kAxisName[3] = {"x", "y", "z"};
 
-double norm3(const std::array<double, 3> &v) { return std::sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]); }
+using Vec = std::array<double, 3>;
+double dot3(const Vec &u, const Vec &v) { return u[0] * v[0] + u[1] * v[1] + u[2] * v[2]; }
+double norm3(const Vec &v) { return std::sqrt(dot3(v, v)); }
+Vec cross3(const Vec &a, const Vec &b) {
+    return {a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]};
+}
 
 // Coefficient (k, r, c) of a row-major (3, 4, 4) array.
 inline double coef(const double *C, int k, int r, int c) { return C[k * 16 + r * 4 + c]; }
@@ -344,7 +349,7 @@ void Problem::ensure_axis(const Section &sec, int ax) const {
     }
     const int g1 = axis_generator(ax, 0), g2 = axis_generator(ax, 1);
     const std::array<double, 3> &u = sec.g_mid[g1], &v = sec.g_mid[g2];
-    const double nn = norm3({u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]});
+    const double nn = norm3(cross3(u, v));
     // Parallel edges (or a flat box) give an axis with no direction: it can
     // rank no contact (its facet has zero area).
     sec.scale[ax] = nn > 1e-9 * sec.glen_mid[g1] * sec.glen_mid[g2] ? nn : 0.0;
@@ -388,9 +393,7 @@ void Problem::facet_values(const Section &sec, double s, double *q) const {
             const Projection pr = kProjection.p[ax][g];
             H += sec.sig[ax][g] * pr.sign * h_[g] * pv[pr.index];
         }
-        const std::array<double, 3> &a = gs[axis_generator(ax, 0)], &b = gs[axis_generator(ax, 1)];
-        const double nd = (a[1] * b[2] - a[2] * b[1]) * ds[0] + (a[2] * b[0] - a[0] * b[2]) * ds[1] +
-                          (a[0] * b[1] - a[1] * b[0]) * ds[2];
+        const double nd = dot3(cross3(gs[axis_generator(ax, 0)], gs[axis_generator(ax, 1)]), ds);
         q[2 * ax] = nd - H - sec.tau[ax];
         q[2 * ax + 1] = -nd - H - sec.tau[ax];
     }
@@ -489,24 +492,17 @@ Problem::Axis Problem::sample_at(double s) const {
 // separation; gap 0 if none separates (the boxes overlap there).
 void Problem::find_axis(Axis &best) const {
     best.searched = true;
-    std::array<double, 3> gs[6], n[15];
+    const Vec *gs = best.val + 1, &ds = best.val[0];  // the generators and d at the sample
+    Vec n[15];
     double len2[6], nn2[15], pv[20];
-    for (int g = 0; g < 6; ++g) {
-        gs[g] = best.val[g + 1];
-        len2[g] = gs[g][0] * gs[g][0] + gs[g][1] * gs[g][1] + gs[g][2] * gs[g][2];
-    }
-    const std::array<double, 3> &ds = best.val[0];
+    for (int g = 0; g < 6; ++g) len2[g] = dot3(gs[g], gs[g]);
 #pragma GCC unroll 15
     for (int ax = 0; ax < 15; ++ax) {
-        const std::array<double, 3> &a = gs[axis_generator(ax, 0)], &b = gs[axis_generator(ax, 1)];
-        n[ax] = {a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]};
-        nn2[ax] = n[ax][0] * n[ax][0] + n[ax][1] * n[ax][1] + n[ax][2] * n[ax][2];
+        n[ax] = cross3(gs[axis_generator(ax, 0)], gs[axis_generator(ax, 1)]);
+        nn2[ax] = dot3(n[ax], n[ax]);
     }
     // Every projection of a generator on an axis is one of the 20 triple
     // products (see kProjection): the face normals give them all.
-    auto dot3 = [](const std::array<double, 3> &u, const std::array<double, 3> &v) {
-        return u[0] * v[0] + u[1] * v[1] + u[2] * v[2];
-    };
     for (int q = 0; q < 2; ++q) {
         for (int i = 0; i < 3; ++i)
             for (int l = 0; l < 3; ++l) pv[9 * q + 3 * i + l] = dot3(n[3 * q + i], gs[3 * (1 - q) + l]);
@@ -557,9 +553,6 @@ bool Problem::apart_on_fixed_axis(double lo, double hi, const Axis &at_lo, const
         ctrl[v][2] = at_hi.val[v];
         for (int r = 0; r < 3; ++r) ctrl[v][1][r] = at_lo.val[v][r] + half_w * at_lo.der[v][r];
     }
-    auto dot3 = [](const std::array<double, 3> &u, const std::array<double, 3> &x) {
-        return u[0] * x[0] + u[1] * x[1] + u[2] * x[2];
-    };
     for (const Axis *axis : {&at_lo, &at_hi}) {
         if (!(axis == &at_lo ? use_lo : use_hi)) continue;
         const std::array<double, 3> &u = axis->u;
