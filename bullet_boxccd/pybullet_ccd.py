@@ -45,7 +45,7 @@ import pybullet as p
 from . import _core
 from .geometry import Box
 from .motion import quat_to_matrix
-from .solver import DEFAULT_TOLERANCES, Contact, Feature, Tolerances, _to_contact
+from .solver import DEFAULT_TOLERANCES, Contact, Feature, Tolerances
 
 __all__ = ["BoxCCD", "CCDEvent", "CCDStats"]
 
@@ -454,7 +454,7 @@ class BoxCCD:
         r = _core.path_contact(pair, lo, hi, self.tolerances._core)
         if r is None:  # cannot happen for a true touch; report the window start
             return Contact(lo, np.full(3, np.nan), np.full(3, np.nan), Feature("", "", ""), lo == 0.0)
-        return _to_contact(r)
+        return r
 
     def _rewind_time(self, pair, boxes, tau_first):
         """The first tau >= tau_first on Bullet's exact path at which the sharp boxes

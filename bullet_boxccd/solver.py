@@ -138,15 +138,16 @@ class Contact(NamedTuple):
     initial: bool
 
 
+# The core builds Contact and Feature instances itself (no Python code runs per hit).
+_core.set_result_types(Contact, Feature)
+
+
 class Plane(NamedTuple):
     """A BMS facet at one time: points x of D = A - B on it satisfy ``normal . x = offset``."""
 
     normal: np.ndarray
     offset: float
     feature: Feature
-
-
-_new = tuple.__new__
 
 
 def _t_range(t_range) -> tuple[float, float]:
@@ -180,15 +181,7 @@ def time_of_impact(
     ``SingularMotionError`` when a 3x3 part collapses inside ``t_range``).
     """
     t0, t1 = _t_range(t_range)
-    r = _core.solve(*_pair_args(a, m_a, b, m_b), t0, t1, tolerances._core)
-    return None if r is None else _to_contact(r)
-
-
-def _to_contact(r) -> Contact:
-    """A Contact from the core's (t, initial, kind, feature of A, feature of B, [point, normal])."""
-    t, initial, kind, feature_a, feature_b, point_normal = r
-    # tuple.__new__ skips NamedTuple's argument handling: half the cost of building the result.
-    return _new(Contact, (t, point_normal[0], point_normal[1], _new(Feature, (kind, feature_a, feature_b)), initial))
+    return _core.solve(*_pair_args(a, m_a, b, m_b), t0, t1, tolerances._core)
 
 
 def time_of_impact_batch(

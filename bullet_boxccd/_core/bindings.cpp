@@ -7,6 +7,12 @@
 #include <nanobind/stl/array.h>
 #include <nanobind/stl/tuple.h>
 
+// numpy's own C API makes the two small arrays of a contact: an array made
+// through nanobind's ndarray export (numpy.asarray on a buffer) costs several
+// times more than the solve of a simple pair.
+#define NPY_NO_DEPRECATED_API NPY_1_7_API_VERSION
+#include <numpy/arrayobject.h>
+
 #include <string>
 #include <vector>
 
@@ -100,19 +106,66 @@ const Names &names() {
     return *n;
 }
 
-// A hit as (t, initial, kind, feature of A, feature of B, [point, normal] (2, 3)):
-// one array for both vectors, since each array made costs more than the solve of a
-// simple pair.
-nb::tuple hit_result(const Hit &h) {
-    auto [d, owner] = new_buffer<double>(6);
-    std::copy(h.point.begin(), h.point.end(), d);
-    std::copy(h.normal.begin(), h.normal.end(), d + 3);
-    const Names &n = names();
-    return nb::make_tuple(h.t, h.initial, n.kind[kind_index(h.facet)], n.of(h.feat_a), n.of(h.feat_b),
-                          Out<double, 2, 3>(d, {2, 3}, owner));
+// The Python result types, Contact(t, point, normal, feature, initial) and
+// Feature(kind, a, b): NamedTuples, registered by bullet_boxccd.solver at import.
+struct ResultTypes {
+    nb::object contact, feature;
+};
+ResultTypes &result_types() {
+    static ResultTypes *r = new ResultTypes;  // never freed: lives as long as the module
+    return *r;
 }
 
-// A hit_result or None.
+void set_result_types(nb::handle contact, nb::handle feature) {
+    for (nb::handle t : {contact, feature}) {
+        // A NamedTuple instance is a tuple with no other storage (__slots__ = ()),
+        // so it can be made as a tuple of its type, as CPython's structseq does.
+        if (!PyType_Check(t.ptr()) || !PyType_IsSubtype((PyTypeObject *)t.ptr(), &PyTuple_Type) ||
+            ((PyTypeObject *)t.ptr())->tp_basicsize != PyTuple_Type.tp_basicsize ||
+            ((PyTypeObject *)t.ptr())->tp_dictoffset != 0)
+            throw nb::type_error("set_result_types: expected NamedTuple classes");
+    }
+    result_types().contact = nb::borrow(contact);
+    result_types().feature = nb::borrow(feature);
+}
+
+// A new instance of tuple subclass `type` holding `items` (new references, stolen).
+nb::object new_tuple(const nb::object &type, std::initializer_list<PyObject *> items) {
+    for (PyObject *o : items)
+        if (!o) {
+            for (PyObject *q : items) Py_XDECREF(q);
+            throw nb::python_error();
+        }
+    PyTypeObject *tp = (PyTypeObject *)type.ptr();
+    PyObject *r = tp->tp_alloc(tp, (Py_ssize_t)items.size());
+    Py_ssize_t i = 0;
+    for (PyObject *o : items) {
+        if (r) PyTuple_SET_ITEM(r, i++, o);
+        else Py_DECREF(o);
+    }
+    if (!r) throw nb::python_error();
+    return nb::steal(r);
+}
+
+PyObject *new_vec3(const std::array<double, 3> &v) {
+    npy_intp n = 3;
+    PyObject *a = PyArray_SimpleNew(1, &n, NPY_DOUBLE);
+    if (a) std::copy(v.begin(), v.end(), static_cast<double *>(PyArray_DATA((PyArrayObject *)a)));
+    return a;
+}
+
+// A hit as a Contact.
+nb::object hit_result(const Hit &h) {
+    const ResultTypes &types = result_types();
+    if (!types.contact.is_valid()) throw std::logic_error("bullet_boxccd.solver did not register its result types");
+    const Names &n = names();
+    nb::object feature = new_tuple(types.feature, {n.kind[kind_index(h.facet)].inc_ref().ptr(),
+                                                   n.of(h.feat_a).inc_ref().ptr(), n.of(h.feat_b).inc_ref().ptr()});
+    return new_tuple(types.contact, {PyFloat_FromDouble(h.t), new_vec3(h.point), new_vec3(h.normal),
+                                     feature.release().ptr(), nb::bool_(h.initial).release().ptr()});
+}
+
+// A Contact or None.
 nb::object solve(const BoxData &a, const MotionData &m_a, const BoxData &b, const MotionData &m_b, double t0,
                  double t1, const Tolerances &tol) {
     const Problem p = make_problem(a, m_a, b, m_b, t0, t1, tol);
@@ -327,7 +380,7 @@ nb::tuple py_fit_path(const In<kPathBoxSize> &box, double lo, double hi) {
     return nb::make_tuple(Out<double, 3, 4, 4>(out, {3, 4, 4}, owner), err);
 }
 
-// Like solve: a hit_result or None.
+// Like solve: a Contact or None.
 nb::object py_path_contact(const PathBoxes &boxes, double lo, double hi, const Tolerances &tol) {
     const Hit h = path_contact(boxes.data(), boxes.data() + kPathBoxSize, lo, hi, tol);
     if (!h.hit) return nb::none();
@@ -338,6 +391,7 @@ nb::object py_path_contact(const PathBoxes &boxes, double lo, double hi, const T
 
 NB_MODULE(_core, m) {
     m.doc() = "Compiled core of bullet_boxccd: the BMS box-box time-of-impact solver.";
+    if (_import_array() < 0) throw nb::python_error();
 
     nb::exception<InputErrorTag> base(m, "InvalidInputError", PyExc_ValueError);
     nb::exception<NonFiniteError>(m, "NonFiniteInputError", base);
@@ -374,6 +428,7 @@ NB_MODULE(_core, m) {
     m.def("make_box", &make_box, nb::arg("lo"), nb::arg("hi"), nb::arg("name"));
     m.def("make_motion", &make_motion, nb::arg("coeffs"), nb::arg("name"));
     m.def("feature_name", &feature_name, nb::arg("signs"));
+    m.def("set_result_types", &set_result_types, nb::arg("contact"), nb::arg("feature"));
     m.def("solve", &solve);
     m.def("solve_batch", &solve_batch);
     m.def("sections", &sections);

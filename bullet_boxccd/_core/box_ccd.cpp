@@ -183,8 +183,12 @@ void Problem::build_facet_terms() const {
         }
     for (Poly &q : proj_) trim(q);  // constant under pure translation
     for (int k = 0; k < 18; ++k) {
-        slope_[k] = 0.0;
-        for (int i = 1; i <= proj_[k].deg; ++i) slope_[k] += i * std::fabs(proj_[k].c[i]);
+        SwitchBound &b = switch_bound_[k];
+        b = {proj_[k].magnitude(), 0.0, 0.0};
+        for (int i = 1; i <= proj_[k].deg; ++i) {
+            b.slope += i * std::fabs(proj_[k].c[i]);
+            b.curvature += i * (i - 1) * std::fabs(proj_[k].c[i]);
+        }
     }
     terms_built_ = true;
 }
@@ -277,14 +281,23 @@ bool Problem::ignorable_switch(int k) const {
 }
 
 // The first sign change of switch polynomial k in (from, to], kNone if none.
-// A short interval is first tried with the cheapest proof of a constant sign:
-// |p(mid)| beyond the slope bound times the half width, plus a bound of the
-// rounding of p(mid) (Horner on degree <= 6: about 12 eps sum |c_i|, doubled).
+// A short interval is first tried with the cheapest proof of a constant sign,
+// Taylor's theorem at its midpoint: |p(s) - p(mid)| <= |p'(mid)| w + |p''|max w^2 / 2
+// for |s - mid| <= w, so p keeps its sign if |p(mid)| exceeds that plus a bound
+// of the rounding of p(mid) and p'(mid) (Horner on degree <= 6: about 12 eps
+// times the sum of the terms' magnitudes, doubled).
 double Problem::next_switch(int k, double from, double to) const {
     if (!(from < to)) return kNone;
     const Poly &p = proj_[k];
-    const double mid = 0.5 * (from + to);
-    if (std::fabs(p(mid)) > slope_[k] * 0.5 * (to - from) + 32.0 * kEps * p.magnitude()) return kNone;
+    const SwitchBound &b = switch_bound_[k];
+    const double mid = 0.5 * (from + to), w = 0.5 * (to - from);
+    double v = p.c[p.deg], dv = 0.0;
+    for (int i = p.deg - 1; i >= 0; --i) {
+        dv = dv * mid + v;
+        v = v * mid + p.c[i];
+    }
+    if (std::fabs(v) > std::fabs(dv) * w + 0.5 * b.curvature * w * w + 32.0 * kEps * (b.magnitude + b.slope * w))
+        return kNone;
     const double r = first_sign_change(p, from, to);
     return std::isnan(r) ? kNone : r;
 }

@@ -198,7 +198,12 @@ private:
     mutable Poly proj_[20];
     mutable Poly nd_[15];
     mutable double noise_[15];  // rounding allowance of each axis' facets
-    mutable double slope_[18];  // sum i |c_i| of each switch polynomial: bounds |p'| on [0, 1]
+    // Of each switch polynomial, on [0, 1]: sum |c_i| bounds |p|, sum i |c_i| bounds
+    // |p'| and sum i (i - 1) |c_i| bounds |p''|.
+    struct SwitchBound {
+        double magnitude, slope, curvature;
+    };
+    mutable SwitchBound switch_bound_[18];
     mutable bool terms_built_ = false;
     mutable uint32_t nd_built_ = 0;  // which nd_ (and edge-edge n_) are built
     void ensure_normal(int ax) const;
