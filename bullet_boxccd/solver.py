@@ -157,6 +157,12 @@ def _t_range(t_range) -> tuple[float, float]:
     return float(r[0]), float(r[1])
 
 
+def _core_tolerances(tolerances):
+    if not isinstance(tolerances, Tolerances):
+        raise InvalidInputError(f"tolerances: expected a Tolerances, got {type(tolerances).__name__}")
+    return tolerances._core
+
+
 def _pair_args(a, m_a, b, m_b):
     if type(a) is Box and type(b) is Box and type(m_a) is QuadraticMotion and type(m_b) is QuadraticMotion:
         return a._data, m_a._data, b._data, m_b._data  # the common case, a quarter of the cost of the loop
@@ -180,8 +186,12 @@ def time_of_impact(
     Raises an ``InvalidInputError`` subclass for bad input (for example
     ``SingularMotionError`` when a 3x3 part collapses inside ``t_range``).
     """
-    t0, t1 = _t_range(t_range)
-    return _core.solve(*_pair_args(a, m_a, b, m_b), t0, t1, tolerances._core)
+    try:  # the common case: one core call, which rejects wrong types with a TypeError
+        return _core.solve(a._data, m_a._data, b._data, m_b._data, t_range, tolerances._core)
+    except (AttributeError, TypeError):
+        pass
+    # Something is of the wrong type or shape: the checks below say what.
+    return _core.solve(*_pair_args(a, m_a, b, m_b), _t_range(t_range), _core_tolerances(tolerances))
 
 
 def time_of_impact_batch(
@@ -217,7 +227,7 @@ def time_of_impact_batch(
     n = {len(x) for x in arrays}
     if len(n) != 1:
         raise InvalidShapeError(f"batch arrays disagree on N: got lengths {[len(x) for x in arrays]}")
-    return _core.solve_batch(*arrays, t0, t1, tolerances._core)
+    return _core.solve_batch(*arrays, t0, t1, _core_tolerances(tolerances))
 
 
 def sections(a, m_a, b, m_b, t_range=(0.0, 1.0), tolerances: Tolerances = DEFAULT_TOLERANCES) -> np.ndarray:
@@ -226,7 +236,7 @@ def sections(a, m_a, b, m_b, t_range=(0.0, 1.0), tolerances: Tolerances = DEFAUL
     Between consecutive entries (a section) the BMS topology is constant.
     """
     t0, t1 = _t_range(t_range)
-    return _core.sections(*_pair_args(a, m_a, b, m_b), t0, t1, tolerances._core)
+    return _core.sections(*_pair_args(a, m_a, b, m_b), t0, t1, _core_tolerances(tolerances))
 
 
 def bms_planes(a, m_a, b, m_b, t: float, t_range=(0.0, 1.0), tolerances: Tolerances = DEFAULT_TOLERANCES):
@@ -237,5 +247,5 @@ def bms_planes(a, m_a, b, m_b, t: float, t_range=(0.0, 1.0), tolerances: Toleran
     normals.
     """
     t0, t1 = _t_range(t_range)
-    normals, offsets, features = _core.planes(*_pair_args(a, m_a, b, m_b), t0, t1, float(t), tolerances._core)
+    normals, offsets, features = _core.planes(*_pair_args(a, m_a, b, m_b), t0, t1, float(t), _core_tolerances(tolerances))
     return [Plane(normals[k], float(offsets[k]), Feature(*features[k])) for k in range(30)]

@@ -5,6 +5,7 @@
 #include <nanobind/ndarray.h>
 #include <nanobind/stl/string.h>
 #include <nanobind/stl/array.h>
+#include <nanobind/stl/pair.h>
 #include <nanobind/stl/tuple.h>
 
 // numpy's own C API makes the two small arrays of a contact: an array made
@@ -165,10 +166,11 @@ nb::object hit_result(const Hit &h) {
                                      feature.release().ptr(), nb::bool_(h.initial).release().ptr()});
 }
 
-// A Contact or None.
-nb::object solve(const BoxData &a, const MotionData &m_a, const BoxData &b, const MotionData &m_b, double t0,
-                 double t1, const Tolerances &tol) {
-    const Problem p = make_problem(a, m_a, b, m_b, t0, t1, tol);
+// A Contact or None. t_range comes whole: the Python wrapper passes its argument
+// through, and falls back to its own checks when nanobind rejects it.
+nb::object solve(const BoxData &a, const MotionData &m_a, const BoxData &b, const MotionData &m_b,
+                 const std::pair<double, double> &t_range, const Tolerances &tol) {
+    const Problem p = make_problem(a, m_a, b, m_b, t_range.first, t_range.second, tol);
     const Hit h = p.solve(true);
     if (!h.hit) return nb::none();
     return hit_result(h);
