@@ -547,6 +547,7 @@ void Problem::find_axis(Axis &best) const {
         const double nn = std::sqrt(nn2[best_ax]);
         best.gap = gap[best_ax] / nn;
         best.u = {n[best_ax][0] / nn, n[best_ax][1] / nn, n[best_ax][2] / nn};
+        best.facet = 2 * best_ax + (dot3(n[best_ax], ds) < 0.0);
     }
 }
 
@@ -586,8 +587,10 @@ bool Problem::apart_on_fixed_axis(double lo, double hi, const Axis &at_lo, const
 // `budget` caps the new sample times: once spent, an unproven piece is not split.
 // If no axis separates at the end of that piece (the boxes overlap there, up to
 // rounding), `overlap` is set to it: the first contact lies within the piece.
+// `facet` is set to the BMS facet of the axis that separates at the piece's start
+// (-1: none), a warm start for the search.
 double Problem::first_unproven(double lo, double hi, Axis &at_lo, Axis &at_hi, int depth, int &budget,
-                               double &overlap) const {
+                               double &overlap, int &facet) const {
     const bool new_lo = !at_lo.searched, new_hi = !at_hi.searched;
     if (apart_on_fixed_axis(lo, hi, at_lo, at_hi, true, true)) return std::numeric_limits<double>::quiet_NaN();
     if (new_lo) find_axis(at_lo);
@@ -597,13 +600,14 @@ double Problem::first_unproven(double lo, double hi, Axis &at_lo, Axis &at_hi, i
     if (at_lo.gap == 0.0) return lo;  // overlapping at lo: no fixed axis proves any piece from lo apart
     if (depth == 0 || budget == 0) {
         if (at_hi.gap == 0.0) overlap = hi;
+        facet = at_lo.facet;
         return lo;
     }
     --budget;
     const double mid = 0.5 * (lo + hi);
     Axis at_mid = sample_at(mid);
-    const double s = first_unproven(lo, mid, at_lo, at_mid, depth - 1, budget, overlap);
-    return std::isnan(s) ? first_unproven(mid, hi, at_mid, at_hi, depth - 1, budget, overlap) : s;
+    const double s = first_unproven(lo, mid, at_lo, at_mid, depth - 1, budget, overlap, facet);
+    return std::isnan(s) ? first_unproven(mid, hi, at_mid, at_hi, depth - 1, budget, overlap, facet) : s;
 }
 
 Hit Problem::solve(bool want_geometry) const {
@@ -614,19 +618,20 @@ Hit Problem::solve(bool want_geometry) const {
     const bool turning = gdeg_[0] | gdeg_[1] | gdeg_[2] | gdeg_[3] | gdeg_[4] | gdeg_[5];
     int budget = kCullBudget;
     double overlap = 1.0;
+    int separating = -1;  // a facet that separates at the search's start
     // The axis at the range's end is searched only if the one at its start
     // cannot keep the whole range apart on its own.
     Axis at0 = sample_at(0.0), at1 = sample_at(1.0);
     find_axis(at0);
     const double start =
-        first_unproven(0.0, 1.0, at0, at1, turning ? kCullDepthTurning : kCullDepth, budget, overlap);
+        first_unproven(0.0, 1.0, at0, at1, turning ? kCullDepthTurning : kCullDepth, budget, overlap, separating);
     if (std::isnan(start)) return hit;
     build_facet_terms();
     // The search ends where the culling saw the boxes overlap: only the octant
     // switches before it matter. If rounding fooled that sample and nothing
     // touches before it, the search goes on from there to the end.
     Switches sw = first_switches(start, overlap);
-    int last = -1, separating = -1;
+    int last = -1;
     for (double lo = start;;) {
         const double hi = sw.boundary();
         const Section sec = make_section(lo, hi);

@@ -157,6 +157,7 @@ private:
     struct Axis {
         std::array<double, 3> u{};
         double gap = 0.0;
+        int facet = -1;         // the BMS facet of u (if gap > 0)
         bool searched = false;  // u and gap are set (find_axis)
         std::array<double, 3> val[7], der[7];
     };
@@ -166,7 +167,7 @@ private:
     bool apart_on_fixed_axis(double lo, double hi, const Axis &at_lo, const Axis &at_hi, bool use_lo,
                              bool use_hi) const;
     double first_unproven(double lo, double hi, Axis &at_lo, Axis &at_hi, int depth, int &budget,
-                          double &overlap) const;
+                          double &overlap, int &facet) const;
     // Pieces (2^depth at most) and new sample times per query, measured best on
     // the benchmark pairs (benchmarks/solver.py).
     static constexpr int kCullDepth = 2, kCullDepthTurning = 6, kCullBudget = 8;
