@@ -342,17 +342,14 @@ Problem::Section Problem::make_section(double lo, double hi) const {
 }
 
 // The topology of one axis in a section, sampled at the section's midpoint (it
-// holds over the whole section), with the axis' tolerance and ranking scale.
-// Computed on first use: a section that one facet keeps apart needs one axis.
+// holds over the whole section), with the axis' tolerance. Computed on first
+// use: only the axes whose facets are root-searched need it.
 void Problem::ensure_axis(const Section &sec, int ax) const {
     if (sec.ready & (1u << ax)) return;
     if (!sec.mid_ready) {  // shared by all 15 axes
         const double mid = 0.5 * (sec.lo + sec.hi);
         for (int i = 0; i < 20; ++i) sec.pv_mid[i] = proj_[i](mid);
-        for (int g = 0; g < 6; ++g) {
-            sec.g_mid[g] = g_[g].at2(mid);
-            sec.glen_mid[g] = norm3(sec.g_mid[g]);
-        }
+        for (int g = 0; g < 6; ++g) sec.g_mid[g] = g_[g].at2(mid);
         sec.mid_ready = true;
     }
     for (int g = 0; g < 6; ++g) {
@@ -360,12 +357,7 @@ void Problem::ensure_axis(const Section &sec, int ax) const {
         const double v = pr.index >= 0 ? pr.sign * sec.pv_mid[pr.index] : 0.0;
         sec.sig[ax][g] = static_cast<int8_t>((v > 0.0) - (v < 0.0));
     }
-    const int g1 = axis_generator(ax, 0), g2 = axis_generator(ax, 1);
-    const std::array<double, 3> &u = sec.g_mid[g1], &v = sec.g_mid[g2];
-    const double nn = norm3(cross3(u, v));
-    // Parallel edges (or a flat box) give an axis with no direction: it can
-    // rank no contact (its facet has zero area).
-    sec.scale[ax] = nn > 1e-9 * sec.glen_mid[g1] * sec.glen_mid[g2] ? nn : 0.0;
+    const double nn = norm3(cross3(sec.g_mid[axis_generator(ax, 0)], sec.g_mid[axis_generator(ax, 1)]));
     sec.tau[ax] = tol_.gap_rel * size_ * nn + noise_[ax];
     sec.ready |= 1u << ax;
 }
@@ -390,25 +382,17 @@ const Poly &Problem::facet_poly(const Section &sec, int facet) const {
     return sec.Q[facet];
 }
 
-// All 30 Q_k(s) from the 20 shared projection polynomials and the vectors at
-// s (n.d of each axis from its two generators), without building any facet.
-void Problem::facet_values(const Section &sec, double s, double *q) const {
-    double pv[20];
-    for (int i = 0; i < 20; ++i) pv[i] = proj_[i](s);
+void Problem::facet_values(double s, FacetValues &f) const {
     std::array<double, 3> gs[6];
     for (int g = 0; g < 6; ++g) gs[g] = g_[g].at2(s);
-    const std::array<double, 3> ds = d_.at2(s);
+    AxisValues v;
+    axis_values(gs, d_.at2(s), v);
     for (int ax = 0; ax < 15; ++ax) {
-        ensure_axis(sec, ax);
-        double H = 0.0;
-        for (int g = 0; g < 6; ++g) {
-            if (!sec.sig[ax][g]) continue;
-            const Projection pr = kProjection.p[ax][g];
-            H += sec.sig[ax][g] * pr.sign * h_[g] * pv[pr.index];
-        }
-        const double nd = dot3(cross3(gs[axis_generator(ax, 0)], gs[axis_generator(ax, 1)]), ds);
-        q[2 * ax] = nd - H - sec.tau[ax];
-        q[2 * ax + 1] = -nd - H - sec.tau[ax];
+        const double len = std::sqrt(v.nn2[ax]);
+        f.len[ax] = v.direction[ax] ? len : 0.0;
+        f.tau[ax] = tol_.gap_rel * size_ * len + noise_[ax];
+        f.q[2 * ax] = v.nd[ax] - v.support[ax] - f.tau[ax];
+        f.q[2 * ax + 1] = -v.nd[ax] - v.support[ax] - f.tau[ax];
     }
 }
 
@@ -430,19 +414,19 @@ bool Problem::advance(const Section &sec, double &s, int &last, int &separating)
         }
     }
     uint32_t touching = 0;  // facets within rounding of zero at this s
-    double q[30];
+    FacetValues f;
     double evaluated_at = std::numeric_limits<double>::quiet_NaN();
     for (int step = 0; step < tol_.max_steps; ++step) {
         if (!(s == evaluated_at)) {
-            facet_values(sec, s, q);
+            facet_values(s, f);
             evaluated_at = s;
         }
         int best = -1;
         double best_v = 0.0;
         for (int k = 0; k < 30; ++k) {
-            if (q[k] <= 0.0 || (touching & (1u << k))) continue;
-            const double sc = sec.scale[k / 2];
-            const double rank = sc > 0.0 ? q[k] / sc : 0.0;  // separation distance
+            if (f.q[k] <= 0.0 || (touching & (1u << k))) continue;
+            const double len = f.len[k / 2];
+            const double rank = len > 0.0 ? f.q[k] / len : 0.0;  // separation distance
             if (best < 0 || rank > best_v) {
                 best_v = rank;
                 best = k;
@@ -465,15 +449,15 @@ bool Problem::advance(const Section &sec, double &s, int &last, int &separating)
     return true;  // step cap: report contact at s (early, never late)
 }
 
-int Problem::best_facet(const Section &sec, double s) const {
-    double q[30];
-    facet_values(sec, s, q);
+int Problem::best_facet(double s) const {
+    FacetValues f;
+    facet_values(s, f);
     int best = 0;
     double best_v = -std::numeric_limits<double>::infinity();
     for (int k = 0; k < 30; ++k) {
-        const double sc = sec.scale[k / 2];
-        if (sc == 0.0) continue;
-        const double v = (q[k] + sec.tau[k / 2]) / sc;
+        const double len = f.len[k / 2];
+        if (len == 0.0) continue;
+        const double v = (f.q[k] + f.tau[k / 2]) / len;
         if (v > best_v) { best_v = v; best = k; }
     }
     return best;
@@ -501,53 +485,59 @@ Problem::Axis Problem::sample_at(double s) const {
     return a;
 }
 
-// The most separating of the 15 axes at the sample's time (unit u) and its
-// separation; gap 0 if none separates (the boxes overlap there).
-void Problem::find_axis(Axis &best) const {
-    best.searched = true;
-    const Vec *gs = best.val + 1, &ds = best.val[0];  // the generators and d at the sample
-    Vec n[15];
-    double len2[6], nn2[15], pv[20];
+void Problem::axis_values(const std::array<double, 3> *gs, const std::array<double, 3> &ds, AxisValues &v) const {
+    double len2[6], pv[20];
     for (int g = 0; g < 6; ++g) len2[g] = dot3(gs[g], gs[g]);
 #pragma GCC unroll 15
     for (int ax = 0; ax < 15; ++ax) {
-        n[ax] = cross3(gs[axis_generator(ax, 0)], gs[axis_generator(ax, 1)]);
-        nn2[ax] = dot3(n[ax], n[ax]);
+        const int g1 = axis_generator(ax, 0), g2 = axis_generator(ax, 1);
+        v.n[ax] = cross3(gs[g1], gs[g2]);
+        v.nn2[ax] = dot3(v.n[ax], v.n[ax]);
+        v.nd[ax] = dot3(v.n[ax], ds);
+        v.direction[ax] = v.nn2[ax] > 1e-18 * len2[g1] * len2[g2];
     }
     // Every projection of a generator on an axis is one of the 20 triple
     // products (see kProjection): the face normals give them all.
     for (int q = 0; q < 2; ++q) {
         for (int i = 0; i < 3; ++i)
-            for (int l = 0; l < 3; ++l) pv[9 * q + 3 * i + l] = dot3(n[3 * q + i], gs[3 * (1 - q) + l]);
-        pv[kDet + q] = dot3(n[3 * q], gs[3 * q]);
+            for (int l = 0; l < 3; ++l) pv[9 * q + 3 * i + l] = std::fabs(dot3(v.n[3 * q + i], gs[3 * (1 - q) + l]));
+        pv[kDet + q] = std::fabs(dot3(v.n[3 * q], gs[3 * q]));
     }
-    // Each axis' gap |n.d| - sum_g h_g |n.g| (unnormalised), then the best gap / |n|.
-    double gap[15];
 #pragma GCC unroll 15
     for (int ax = 0; ax < 15; ++ax) {
-        double v = std::fabs(dot3(n[ax], ds));
+        double h = 0.0;
 #pragma GCC unroll 6
         for (int g = 0; g < 6; ++g) {
             const Projection pr = kProjection.p[ax][g];
-            if (pr.index >= 0) v -= h_[g] * std::fabs(pv[pr.index]);
+            if (pr.index >= 0) h += h_[g] * pv[pr.index];
         }
-        gap[ax] = v;
+        v.support[ax] = h;
     }
+}
+
+// The most separating of the 15 axes at the sample's time (unit u) and its
+// separation; gap 0 if none separates (the boxes overlap there).
+void Problem::find_axis(Axis &best) const {
+    best.searched = true;
+    AxisValues v;
+    axis_values(best.val + 1, best.val[0], v);
     int best_ax = -1;
-    double best_gap2 = 0.0;  // (gap / |n|)^2 of the best
+    double best_gap = 0.0, best_gap2 = 0.0;  // gap (unnormalised) and (gap / |n|)^2 of the best
     for (int ax = 0; ax < 15; ++ax) {
-        const double lim = 1e-18 * len2[axis_generator(ax, 0)] * len2[axis_generator(ax, 1)];
-        // Parallel edges give no axis; gap^2 / |n|^2 ranks the rest without a sqrt.
-        if (gap[ax] > 0.0 && nn2[ax] > lim && gap[ax] * gap[ax] > best_gap2 * nn2[ax]) {
-            best_gap2 = gap[ax] * gap[ax] / nn2[ax];
+        const double gap = std::fabs(v.nd[ax]) - v.support[ax];
+        // gap^2 / |n|^2 ranks the axes without a sqrt.
+        if (gap > 0.0 && v.direction[ax] && gap * gap > best_gap2 * v.nn2[ax]) {
+            best_gap = gap;
+            best_gap2 = gap * gap / v.nn2[ax];
             best_ax = ax;
         }
     }
     if (best_ax >= 0) {
-        const double nn = std::sqrt(nn2[best_ax]);
-        best.gap = gap[best_ax] / nn;
-        best.u = {n[best_ax][0] / nn, n[best_ax][1] / nn, n[best_ax][2] / nn};
-        best.facet = 2 * best_ax + (dot3(n[best_ax], ds) < 0.0);
+        const double nn = std::sqrt(v.nn2[best_ax]);
+        const Vec &n = v.n[best_ax];
+        best.gap = best_gap / nn;
+        best.u = {n[0] / nn, n[1] / nn, n[2] / nn};
+        best.facet = 2 * best_ax + (v.nd[best_ax] < 0.0);
     }
 }
 
@@ -644,7 +634,7 @@ Hit Problem::solve(bool want_geometry) const {
             // The facet the origin just crossed; when no facet was crossed
             // (contact at the start or exactly at a section boundary) the facet
             // of least penetration.
-            hit.facet = (last >= 0 && !hit.initial) ? last : best_facet(sec, s);
+            hit.facet = (last >= 0 && !hit.initial) ? last : best_facet(s);
             if (want_geometry) contact_geometry(sec, hit);
             return hit;
         }
@@ -711,16 +701,17 @@ void Problem::planes(double s, double *normals, double *offsets, int8_t *feat_a,
         pass(sw, lo);
     }
     const Section sec = make_section(lo, sw.boundary());
-    double q[30];
-    facet_values(sec, s, q);
+    FacetValues f;
+    facet_values(s, f);
     for (int k = 0; k < 30; ++k) {
         const int ax = k / 2;
+        ensure_axis(sec, ax);
         ensure_normal(ax);
         const double sgn = k % 2 == 0 ? 1.0 : -1.0;
         const std::array<double, 3> n = n_[ax](s);
         const double nn = norm3(n);
         for (int r = 0; r < 3; ++r) normals[3 * k + r] = sgn * n[r] / nn;
-        offsets[k] = -(q[k] + sec.tau[ax]) / nn;
+        offsets[k] = -(f.q[k] + f.tau[ax]) / nn;
         for (int g = 0; g < 3; ++g) {
             feat_a[3 * k + g] = static_cast<int8_t>(facet_sign(sec.sig[ax], k, g));
             feat_b[3 * k + g] = static_cast<int8_t>(-facet_sign(sec.sig[ax], k, 3 + g));

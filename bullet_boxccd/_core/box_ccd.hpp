@@ -127,12 +127,10 @@ private:
         // Per axis, filled on first use (ensure_axis):
         mutable int8_t sig[15][6];             // sign of n_axis . g at mid-section (0: structural)
         mutable std::array<double, 15> tau;    // touching tolerance + rounding allowance
-        mutable std::array<double, 15> scale;  // |n| at mid-section to rank axes; 0: no direction
         mutable uint32_t ready = 0;            // which axes are filled
         mutable bool mid_ready = false;        // the shared values at mid-section below
         mutable double pv_mid[20];             // the 20 projection polynomials at mid-section
         mutable std::array<double, 3> g_mid[6];
-        mutable double glen_mid[6];
         mutable std::array<Poly, 30> Q;        // facet polynomial minus tau: <= 0 is touching
         mutable uint32_t built = 0;            // which Q are built
     };
@@ -149,7 +147,26 @@ private:
     void pass(Switches &sw, double boundary) const;
     Section make_section(double lo, double hi) const;
     const Poly &facet_poly(const Section &sec, int facet) const;
-    void facet_values(const Section &sec, double s, double *q) const;  // Q_k(s), k < 30
+    // The 15 axes at one time, from the generators gs and d there: each axis'
+    // normal n (the cross product of its two generators, unnormalised), |n|^2,
+    // n.d, and the support sum_g h_g |n.g| of the boxes' extents along n. An
+    // axis has no direction (parallel edges, a flat box) when |n| <= 1e-9 times
+    // the product of its generators' lengths.
+    struct AxisValues {
+        std::array<double, 3> n[15];
+        double nn2[15], nd[15], support[15];
+        bool direction[15];
+    };
+    void axis_values(const std::array<double, 3> *gs, const std::array<double, 3> &ds, AxisValues &v) const;
+    // The 30 facets at s: q[k] = +-n.d - support - tau[axis] (<= 0: touching),
+    // tau the touching tolerance at s plus the rounding allowance, and each
+    // axis' |n| at s (0: no direction) to rank facets by distance. Within a
+    // section the support is the section's signed sum (its signs hold there):
+    // these are the facet polynomials' values, up to rounding and tau's |n|.
+    struct FacetValues {
+        double q[30], tau[15], len[15];
+    };
+    void facet_values(double s, FacetValues &f) const;
     // A sample time of the culling: the most separating axis there (unit u and
     // its gap; gap 0: none separates), and d and the generators (v = 0 and
     // 1..6) with their derivatives there, from which the Bernstein control
@@ -175,7 +192,7 @@ private:
     // From s in the section: true with s at the first contact, or false when a
     // facet (`separating`, also a warm start on entry) keeps the section apart.
     bool advance(const Section &sec, double &s, int &last, int &separating) const;
-    int best_facet(const Section &sec, double s) const;
+    int best_facet(double s) const;
     void contact_geometry(const Section &sec, Hit &hit) const;
     void build_facet_terms() const;
 
