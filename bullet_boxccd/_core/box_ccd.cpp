@@ -150,11 +150,19 @@ Problem::Problem(const BoxInput &a, const BoxInput &b, double t0_, double t1_, c
         hmag_ += h_[g] * gmag_[g];
         size_ += h_[g] * norm3(g_[g].at2(0.5));
     }
-    for (int g = 0; g < 6; ++g) gdeg_[g] = degree_class(g_[g], 2);
+    for (int g = 0; g < 6; ++g) {
+        gdeg_[g] = degree_class(g_[g], 2);
+        glen2_[g] = norm3({g_[g].x[0].c[2], g_[g].x[1].c[2], g_[g].x[2].c[2]});
+    }
     ddeg_ = degree_class(d_, 2);
+    turning_ = gdeg_[0] | gdeg_[1] | gdeg_[2] | gdeg_[3] | gdeg_[4] | gdeg_[5];
+    for (int ax = 0; ax < 15; ++ax)
+        noise_[ax] = tol_.rounding * kEps * (dmag_ + hmag_) * gmag_[axis_generator(ax, 0)] *
+                     gmag_[axis_generator(ax, 1)];
     for (int q = 0; q < 2; ++q) {
-        n_[3 * q] = cross_by_degree(g_[3 * q + 1], gdeg_[3 * q + 1], g_[3 * q + 2], gdeg_[3 * q + 2]);
-        proj_[kDet + q] = dot_by_degree(n_[3 * q], normal_degree(3 * q), g_[3 * q], gdeg_[3 * q]);
+        proj_[kDet + q] = dot_by_degree(normal(3 * q), normal_degree(3 * q), g_[3 * q], gdeg_[3 * q]);
+        trim(proj_[kDet + q]);  // constant when the box does not turn
+        proj_built_ |= 1u << (kDet + q);
     }
     // Inputs near the top of the double range overflow in these products;
     // say so instead of returning nonsense.
@@ -167,44 +175,35 @@ Problem::Problem(const BoxInput &a, const BoxInput &b, double t0_, double t1_, c
             "overflow double precision");
 }
 
-void Problem::build_facet_terms() const {
-    if (terms_built_) return;
-    for (int ax : {1, 2, 4, 5}) {  // the face normals (0 and 3 come with the problem)
+const PVec &Problem::normal(int ax) const {
+    if (!(n_built_ & (1u << ax))) {
         const int ga = axis_generator(ax, 0), gb = axis_generator(ax, 1);
         n_[ax] = cross_by_degree(g_[ga], gdeg_[ga], g_[gb], gdeg_[gb]);
+        n_built_ |= 1u << ax;
     }
-    for (int ax = 0; ax < 15; ++ax)
-        noise_[ax] = tol_.rounding * kEps * (dmag_ + hmag_) * gmag_[axis_generator(ax, 0)] *
-                     gmag_[axis_generator(ax, 1)];
-    for (int i = 0; i < 3; ++i)
-        for (int l = 0; l < 3; ++l) {
-            proj_[3 * i + l] = dot_by_degree(n_[i], normal_degree(i), g_[3 + l], gdeg_[3 + l]);
-            proj_[9 + 3 * i + l] = dot_by_degree(n_[3 + i], normal_degree(3 + i), g_[l], gdeg_[l]);
-        }
-    for (Poly &q : proj_) trim(q);  // constant under pure translation
-    for (int k = 0; k < 18; ++k) {
-        SwitchBound &b = switch_bound_[k];
-        b = {proj_[k].magnitude(), 0.0, 0.0};
-        for (int i = 1; i <= proj_[k].deg; ++i) {
-            b.slope += i * std::fabs(proj_[k].c[i]);
-            b.curvature += i * (i - 1) * std::fabs(proj_[k].c[i]);
-        }
-    }
-    terms_built_ = true;
+    return n_[ax];
 }
 
-// The normal of an edge-edge axis and n.d of any axis, as polynomials: built
-// when a facet of the axis is root-searched or its geometry is asked for
-// (facet values take n.d from the vectors at s instead).
-void Problem::ensure_normal(int ax) const {
-    if (nd_built_ & (1u << ax)) return;
-    if (ax >= 6) {
-        const int ga = axis_generator(ax, 0), gb = axis_generator(ax, 1);
-        n_[ax] = cross_by_degree(g_[ga], gdeg_[ga], g_[gb], gdeg_[gb]);
+const Poly &Problem::projection(int k) const {
+    if (!(proj_built_ & (1u << k))) {  // k < 18: S[q][i][l] = n_{3q+i} . g_{3(1-q)+l}
+        const int q = k / 9, i = (k % 9) / 3, l = k % 3, g = 3 * (1 - q) + l;
+        proj_[k] = dot_by_degree(normal(3 * q + i), normal_degree(3 * q + i), g_[g], gdeg_[g]);
+        trim(proj_[k]);  // constant under pure translation
+        proj_built_ |= 1u << k;
     }
-    nd_[ax] = dot_by_degree(n_[ax], normal_degree(ax), d_, ddeg_);
-    trim(nd_[ax]);
-    nd_built_ |= 1u << ax;
+    return proj_[k];
+}
+
+// n.d of an axis as a polynomial: built when a facet of the axis is
+// root-searched or its geometry is asked for (facet values take n.d from the
+// vectors at s instead).
+const Poly &Problem::normal_dot_d(int ax) const {
+    if (!(nd_built_ & (1u << ax))) {
+        nd_[ax] = dot_by_degree(normal(ax), normal_degree(ax), d_, ddeg_);
+        trim(nd_[ax]);
+        nd_built_ |= 1u << ax;
+    }
+    return nd_[ax];
 }
 
 // The projection n_axis . g as one of the 20 shared polynomials (or a
@@ -244,6 +243,16 @@ struct ProjectionTable {
     }
 };
 constexpr ProjectionTable kProjection;  // constant: the unrolled loops fold it away
+
+// The 20 triple products at one time (indexed like Problem::proj_) from the six
+// face normals (axes 0..5) and the generators there.
+void triple_products(const Vec *face, const Vec *gs, double *pv) {
+    for (int q = 0; q < 2; ++q) {
+        for (int i = 0; i < 3; ++i)
+            for (int l = 0; l < 3; ++l) pv[9 * q + 3 * i + l] = dot3(face[3 * q + i], gs[3 * (1 - q) + l]);
+        pv[kDet + q] = dot3(face[3 * q], gs[3 * q]);
+    }
+}
 }  // namespace
 
 void Problem::check_regular(const char *name_a, const char *name_b) const {
@@ -274,38 +283,88 @@ bool Problem::ignorable_switch(int k) const {
     const int q = k / 9, i = (k % 9) / 3, l = k % 3;
     const double noise = tol_.rounding * kEps * gmag_[3 * q + (i + 1) % 3] * gmag_[3 * q + (i + 2) % 3] *
                          gmag_[3 * (1 - q) + l];
-    const Poly &p = proj_[k];
+    const Poly &p = projection(k);
     for (int c = 0; c <= p.deg; ++c)
         if (std::fabs(p.c[c]) > noise) return false;
     return true;
 }
 
-// The first sign change of switch polynomial k in (from, to], kNone if none.
-// A short interval is first tried with the cheapest proof of a constant sign,
-// Taylor's theorem at its midpoint: |p(s) - p(mid)| <= |p'(mid)| w + |p''|max w^2 / 2
-// for |s - mid| <= w, so p keeps its sign if |p(mid)| exceeds that plus a bound
-// of the rounding of p(mid) and p'(mid) (Horner on degree <= 6: about 12 eps
-// times the sum of the terms' magnitudes, doubled).
-double Problem::next_switch(int k, double from, double to) const {
-    if (!(from < to)) return kNone;
-    const Poly &p = proj_[k];
-    const SwitchBound &b = switch_bound_[k];
+// The switch polynomials S[q][i][l] = n . c with n = a x b the face normal
+// (a, b, c generators): at mid, S = n . c and S' = n' . c + n . c' with
+// n' = a' x b + a x b'.
+Problem::SwitchProbe Problem::probe_switches(double from, double to) const {
+    SwitchProbe pr;
     const double mid = 0.5 * (from + to), w = 0.5 * (to - from);
-    double v = p.c[p.deg], dv = 0.0;
-    for (int i = p.deg - 1; i >= 0; --i) {
-        dv = dv * mid + v;
-        v = v * mid + p.c[i];
+    pr.w = w;
+    Vec val[6], der[6];
+    for (int g = 0; g < 6; ++g) {
+        for (int r = 0; r < 3; ++r) {
+            const Poly &p = g_[g].x[r];
+            val[g][r] = eval2(p, mid);
+            der[g][r] = p.c[1] + 2.0 * p.c[2] * mid;
+        }
+        const double len = norm3(val[g]), dlen = norm3(der[g]);
+        pr.v[g] = len + (dlen + glen2_[g] * w) * w;
+        pr.d1[g] = dlen + 2.0 * glen2_[g] * w;
+        pr.d2[g] = 2.0 * glen2_[g];
     }
-    if (std::fabs(v) > std::fabs(dv) * w + 0.5 * b.curvature * w * w + 32.0 * kEps * (b.magnitude + b.slope * w))
-        return kNone;
-    const double r = first_sign_change(p, from, to);
+    for (int f = 0; f < 6; ++f) {
+        const int ga = axis_generator(f, 0), gb = axis_generator(f, 1);
+        const Vec n = cross3(val[ga], val[gb]), da = cross3(der[ga], val[gb]), db = cross3(val[ga], der[gb]);
+        const Vec dn = {da[0] + db[0], da[1] + db[1], da[2] + db[2]};
+        const int q = f / 3, i = f % 3;
+        for (int l = 0; l < 3; ++l) {
+            const int gc = 3 * (1 - q) + l, k = 9 * q + 3 * i + l;
+            pr.p[k] = dot3(n, val[gc]);
+            pr.dp[k] = dot3(dn, val[gc]) + dot3(n, der[gc]);
+        }
+    }
+    return pr;
+}
+
+// Taylor's theorem at mid: |p(s) - p(mid)| <= |p'(mid)| w + max|p''| w^2 / 2 for
+// |s - mid| <= w, so p keeps its sign if |p(mid)| exceeds that plus a bound of
+// the rounding of p(mid) and p'(mid). Here p = (a x b) . c with quadratic vector
+// curves a, b, c (the generators), so over the interval |a| <= |a(mid)| +
+// |a'(mid)| w + |a2| w^2, |a'| <= |a'(mid)| + 2 |a2| w and |a''| = 2 |a2| (a2 the
+// s^2 coefficient vector), and
+//   |p''| <= |a''||b||c| + |a||b''||c| + |a||b||c''| + 2 (|a'||b'||c| + |a'||b||c'| + |a||b'||c'|).
+// The rounding of p and p' from the generators' values (each within a few eps
+// of its coefficients' magnitude) stays below 32 eps times the product of the
+// three magnitudes, and 8 times that for p' (derivatives up to twice as large).
+bool Problem::switch_constant(int k, const SwitchProbe &pr) const {
+    const int q = k / 9, i = (k % 9) / 3, l = k % 3;
+    const int a = 3 * q + (i + 1) % 3, b = 3 * q + (i + 2) % 3, c = 3 * (1 - q) + l;
+    const double curvature = pr.d2[a] * pr.v[b] * pr.v[c] + pr.v[a] * pr.d2[b] * pr.v[c] +
+                             pr.v[a] * pr.v[b] * pr.d2[c] +
+                             2.0 * (pr.d1[a] * pr.d1[b] * pr.v[c] + pr.d1[a] * pr.v[b] * pr.d1[c] +
+                                    pr.v[a] * pr.d1[b] * pr.d1[c]);
+    const double w = pr.w, rounding = 32.0 * kEps * gmag_[a] * gmag_[b] * gmag_[c] * (1.0 + 8.0 * w);
+    return std::fabs(pr.p[k]) > std::fabs(pr.dp[k]) * w + 0.5 * curvature * w * w + rounding;
+}
+
+// The first sign change of switch polynomial k in (from, to], kNone if none.
+// The cheapest proof of a constant sign comes first (switch_constant: most
+// intervals the search covers are short); the polynomial is built only if it
+// fails. `probe`: probe_switches(from, to).
+double Problem::next_switch(int k, double from, double to, const SwitchProbe &probe) const {
+    if (!(from < to)) return kNone;
+    const int q = k / 9, i = (k % 9) / 3, l = k % 3;
+    if (!(gdeg_[3 * q + (i + 1) % 3] | gdeg_[3 * q + (i + 2) % 3] | gdeg_[3 * (1 - q) + l]))
+        return kNone;  // three constant generators: a constant
+    if (switch_constant(k, probe)) return kNone;
+    if (ignorable_switch(k)) return kNone;
+    const double r = first_sign_change(projection(k), from, to);
     return std::isnan(r) ? kNone : r;
 }
 
 Problem::Switches Problem::first_switches(double from, double to) const {
     Switches sw;
     sw.to = to;
-    for (int k = 0; k < 18; ++k) sw.next[k] = ignorable_switch(k) ? kNone : next_switch(k, from, to);
+    sw.next.fill(kNone);
+    if (!turning_) return sw;  // constant edge directions: no octant switches
+    const SwitchProbe probe = probe_switches(from, to);
+    for (int k = 0; k < 18; ++k) sw.next[k] = next_switch(k, from, to, probe);
     return sw;
 }
 
@@ -318,12 +377,12 @@ double Problem::Switches::boundary() const {
 void Problem::pass(Switches &sw, double boundary) const {
     // Sign changes within a few doubles of the one just passed are the same switch.
     const double from = boundary + 4.0 * kRootWidth;
+    const SwitchProbe probe = probe_switches(from, sw.to);
     for (int k = 0; k < 18; ++k)
-        if (sw.next[k] <= boundary) sw.next[k] = next_switch(k, from, sw.to);
+        if (sw.next[k] <= boundary) sw.next[k] = next_switch(k, from, sw.to, probe);
 }
 
 std::vector<double> Problem::sections() const {
-    build_facet_terms();
     std::vector<double> cuts{0.0};
     Switches sw = first_switches(0.0);
     for (double b = sw.boundary(); b < 1.0; b = sw.boundary()) {
@@ -348,8 +407,10 @@ void Problem::ensure_axis(const Section &sec, int ax) const {
     if (sec.ready & (1u << ax)) return;
     if (!sec.mid_ready) {  // shared by all 15 axes
         const double mid = 0.5 * (sec.lo + sec.hi);
-        for (int i = 0; i < 20; ++i) sec.pv_mid[i] = proj_[i](mid);
         for (int g = 0; g < 6; ++g) sec.g_mid[g] = g_[g].at2(mid);
+        Vec face[6];
+        for (int ax = 0; ax < 6; ++ax) face[ax] = cross3(sec.g_mid[axis_generator(ax, 0)], sec.g_mid[axis_generator(ax, 1)]);
+        triple_products(face, sec.g_mid, sec.pv_mid);
         sec.mid_ready = true;
     }
     for (int g = 0; g < 6; ++g) {
@@ -367,14 +428,13 @@ const Poly &Problem::facet_poly(const Section &sec, int facet) const {
     if (!(sec.built & (1u << facet))) {
         const int ax = facet / 2;
         ensure_axis(sec, ax);
-        ensure_normal(ax);
         Poly H{};
         for (int g = 0; g < 6; ++g) {
             if (!sec.sig[ax][g]) continue;
             const Projection pr = kProjection.p[ax][g];
-            axpy(H, sec.sig[ax][g] * pr.sign * h_[g], proj_[pr.index]);
+            axpy(H, sec.sig[ax][g] * pr.sign * h_[g], projection(pr.index));
         }
-        Poly P = (facet % 2 == 0 ? 1.0 : -1.0) * nd_[ax] - H;
+        Poly P = (facet % 2 == 0 ? 1.0 : -1.0) * normal_dot_d(ax) - H;
         P.c[0] -= sec.tau[ax];
         sec.Q[facet] = P;
         sec.built |= 1u << facet;
@@ -496,20 +556,14 @@ void Problem::axis_values(const std::array<double, 3> *gs, const std::array<doub
         v.nd[ax] = dot3(v.n[ax], ds);
         v.direction[ax] = v.nn2[ax] > 1e-18 * len2[g1] * len2[g2];
     }
-    // Every projection of a generator on an axis is one of the 20 triple
-    // products (see kProjection): the face normals give them all.
-    for (int q = 0; q < 2; ++q) {
-        for (int i = 0; i < 3; ++i)
-            for (int l = 0; l < 3; ++l) pv[9 * q + 3 * i + l] = std::fabs(dot3(v.n[3 * q + i], gs[3 * (1 - q) + l]));
-        pv[kDet + q] = std::fabs(dot3(v.n[3 * q], gs[3 * q]));
-    }
+    triple_products(v.n, gs, pv);
 #pragma GCC unroll 15
     for (int ax = 0; ax < 15; ++ax) {
         double h = 0.0;
 #pragma GCC unroll 6
         for (int g = 0; g < 6; ++g) {
             const Projection pr = kProjection.p[ax][g];
-            if (pr.index >= 0) h += h_[g] * pv[pr.index];
+            if (pr.index >= 0) h += h_[g] * std::fabs(pv[pr.index]);
         }
         v.support[ax] = h;
     }
@@ -605,7 +659,6 @@ Hit Problem::solve(bool want_geometry) const {
     // Pieces of the range that one fixed axis keeps apart need no BMS search.
     // Turning boxes make the BMS search costly (octant switches, degree-6
     // facets), so their culling goes deeper than that of translating ones.
-    const bool turning = gdeg_[0] | gdeg_[1] | gdeg_[2] | gdeg_[3] | gdeg_[4] | gdeg_[5];
     int budget = kCullBudget;
     double overlap = 1.0;
     int separating = -1;  // a facet that separates at the search's start
@@ -614,9 +667,8 @@ Hit Problem::solve(bool want_geometry) const {
     Axis at0 = sample_at(0.0), at1 = sample_at(1.0);
     find_axis(at0);
     const double start =
-        first_unproven(0.0, 1.0, at0, at1, turning ? kCullDepthTurning : kCullDepth, budget, overlap, separating);
+        first_unproven(0.0, 1.0, at0, at1, turning_ ? kCullDepthTurning : kCullDepth, budget, overlap, separating);
     if (std::isnan(start)) return hit;
-    build_facet_terms();
     // The search ends where the culling saw the boxes overlap: only the octant
     // switches before it matter. If rounding fooled that sample and nothing
     // touches before it, the search goes on from there to the end.
@@ -653,9 +705,8 @@ static inline int facet_sign(const int8_t sig[6], int facet, int g) {
 void Problem::contact_geometry(const Section &sec, Hit &hit) const {
     const int ax = hit.facet / 2;
     ensure_axis(sec, ax);
-    ensure_normal(ax);
     const double s = hit.s;
-    std::array<double, 3> n = n_[ax](s), cA = cA_(s), cB = cB_(s);
+    std::array<double, 3> n = normal(ax)(s), cA = cA_(s), cB = cB_(s);
     std::array<double, 3> gv[6];
     for (int g = 0; g < 6; ++g) gv[g] = g_[g](s);
     const double sgn = hit.facet % 2 == 0 ? 1.0 : -1.0, nn = norm3(n);
@@ -693,7 +744,6 @@ void Problem::contact_geometry(const Section &sec, Hit &hit) const {
 }
 
 void Problem::planes(double s, double *normals, double *offsets, int8_t *feat_a, int8_t *feat_b) const {
-    build_facet_terms();
     Switches sw = first_switches(0.0);
     double lo = 0.0;
     while (sw.boundary() <= s && sw.boundary() < 1.0) {
@@ -706,9 +756,8 @@ void Problem::planes(double s, double *normals, double *offsets, int8_t *feat_a,
     for (int k = 0; k < 30; ++k) {
         const int ax = k / 2;
         ensure_axis(sec, ax);
-        ensure_normal(ax);
         const double sgn = k % 2 == 0 ? 1.0 : -1.0;
-        const std::array<double, 3> n = n_[ax](s);
+        const std::array<double, 3> n = normal(ax)(s);
         const double nn = norm3(n);
         for (int r = 0; r < 3; ++r) normals[3 * k + r] = sgn * n[r] / nn;
         offsets[k] = -(f.q[k] + f.tau[ax]) / nn;

@@ -142,7 +142,17 @@ private:
         double boundary() const;         // the next section end (`to` at the latest)
     };
     bool ignorable_switch(int k) const;
-    double next_switch(int k, double from, double to) const;
+    // The 18 switch polynomials on an interval [mid - w, mid + w], from the
+    // generators at mid: their values and derivatives at mid, and bounds over
+    // the interval of each generator's length (v), and of its first and second
+    // derivatives' (d1, d2).
+    struct SwitchProbe {
+        double w, p[18], dp[18], v[6], d1[6], d2[6];
+    };
+    SwitchProbe probe_switches(double from, double to) const;
+    // Whether switch k keeps its sign on the probe's interval (false: not proven).
+    bool switch_constant(int k, const SwitchProbe &probe) const;
+    double next_switch(int k, double from, double to, const SwitchProbe &probe) const;
     Switches first_switches(double from, double to = 1.0) const;
     void pass(Switches &sw, double boundary) const;
     Section make_section(double lo, double hi) const;
@@ -194,37 +204,35 @@ private:
     bool advance(const Section &sec, double &s, int &last, int &separating) const;
     int best_facet(double s) const;
     void contact_geometry(const Section &sec, Hit &hit) const;
-    void build_facet_terms() const;
 
     Tolerances tol_;
     PVec g_[6];
     double h_[6];
     PVec cA_, cB_, d_;
     double gmag_[6];
+    double glen2_[6];  // length of each generator's s^2 coefficient vector
     int gdeg_[6], ddeg_;  // degree classes of g_ and d_ (0: constant, else 2)
+    bool turning_;        // some generator is not constant
     int normal_degree(int axis) const {  // of n_[axis], the cross product of its two generators
         return gdeg_[axis_generator(axis, 0)] + gdeg_[axis_generator(axis, 1)];
     }
     double dmag_, hmag_;
     double size_;  // world size used by gap_rel
-    // Cofactor terms; n_[0], n_[3] and det_ are built with the problem (the
-    // regularity check needs them), the face normals and projections on first
-    // use (a pair that a fixed axis keeps apart never needs them), edge-edge
-    // normals and nd_ per axis when one of its facets is root-searched.
+    double noise_[15];  // rounding allowance of each axis' facets
+    // Cofactor terms, as polynomials: n_[0], n_[3] and the determinants come
+    // with the problem (the regularity check needs them); the rest is built on
+    // first use, through the accessors below. Most queries need few of them: a
+    // fixed axis keeps most pairs apart, the switches on a short interval are
+    // mostly proven constant from vectors, and only the root-searched facets
+    // need their polynomials.
     // proj_[9q + 3i + l] = S[q][i][l] (see the file comment), proj_[18 + q] = det.
     mutable PVec n_[15];
     mutable Poly proj_[20];
     mutable Poly nd_[15];
-    mutable double noise_[15];  // rounding allowance of each axis' facets
-    // Of each switch polynomial, on [0, 1]: sum |c_i| bounds |p|, sum i |c_i| bounds
-    // |p'| and sum i (i - 1) |c_i| bounds |p''|.
-    struct SwitchBound {
-        double magnitude, slope, curvature;
-    };
-    mutable SwitchBound switch_bound_[18];
-    mutable bool terms_built_ = false;
-    mutable uint32_t nd_built_ = 0;  // which nd_ (and edge-edge n_) are built
-    void ensure_normal(int ax) const;
+    mutable uint32_t n_built_ = 0, proj_built_ = 0, nd_built_ = 0;  // which are built
+    const PVec &normal(int ax) const;     // n_[ax]
+    const Poly &projection(int k) const;  // proj_[k]
+    const Poly &normal_dot_d(int ax) const;  // nd_[ax] = n_[ax] . d
 };
 
 constexpr int kDet = 18;                   // proj_[kDet + q] is det A (q = 0) or det B (q = 1)
