@@ -150,15 +150,9 @@ Problem::Problem(const BoxInput &a, const BoxInput &b, double t0_, double t1_, c
         hmag_ += h_[g] * gmag_[g];
         size_ += h_[g] * norm3(g_[g].at2(0.5));
     }
-    for (int g = 0; g < 6; ++g) {
-        gdeg_[g] = degree_class(g_[g], 2);
-        glen2_[g] = norm3({g_[g].x[0].c[2], g_[g].x[1].c[2], g_[g].x[2].c[2]});
-    }
+    for (int g = 0; g < 6; ++g) gdeg_[g] = degree_class(g_[g], 2);
     ddeg_ = degree_class(d_, 2);
     turning_ = gdeg_[0] | gdeg_[1] | gdeg_[2] | gdeg_[3] | gdeg_[4] | gdeg_[5];
-    for (int ax = 0; ax < 15; ++ax)
-        noise_[ax] = tol_.rounding * kEps * (dmag_ + hmag_) * gmag_[axis_generator(ax, 0)] *
-                     gmag_[axis_generator(ax, 1)];
     for (int q = 0; q < 2; ++q) {
         proj_[kDet + q] = dot_by_degree(normal(3 * q), normal_degree(3 * q), g_[3 * q], gdeg_[3 * q]);
         trim(proj_[kDet + q]);  // constant when the box does not turn
@@ -304,9 +298,10 @@ Problem::SwitchProbe Problem::probe_switches(double from, double to) const {
             der[g][r] = p.c[1] + 2.0 * p.c[2] * mid;
         }
         const double len = norm3(val[g]), dlen = norm3(der[g]);
-        pr.v[g] = len + (dlen + glen2_[g] * w) * w;
-        pr.d1[g] = dlen + 2.0 * glen2_[g] * w;
-        pr.d2[g] = 2.0 * glen2_[g];
+        const double len2 = norm3({g_[g].x[0].c[2], g_[g].x[1].c[2], g_[g].x[2].c[2]});  // of the s^2 term
+        pr.v[g] = len + (dlen + len2 * w) * w;
+        pr.d1[g] = dlen + 2.0 * len2 * w;
+        pr.d2[g] = 2.0 * len2;
     }
     for (int f = 0; f < 6; ++f) {
         const int ga = axis_generator(f, 0), gb = axis_generator(f, 1);
@@ -419,7 +414,7 @@ void Problem::ensure_axis(const Section &sec, int ax) const {
         sec.sig[ax][g] = static_cast<int8_t>((v > 0.0) - (v < 0.0));
     }
     const double nn = norm3(cross3(sec.g_mid[axis_generator(ax, 0)], sec.g_mid[axis_generator(ax, 1)]));
-    sec.tau[ax] = tol_.gap_rel * size_ * nn + noise_[ax];
+    sec.tau[ax] = tol_.gap_rel * size_ * nn + noise(ax);
     sec.ready |= 1u << ax;
 }
 
@@ -450,7 +445,7 @@ void Problem::facet_values(double s, FacetValues &f) const {
     for (int ax = 0; ax < 15; ++ax) {
         const double len = std::sqrt(v.nn2[ax]);
         f.len[ax] = v.direction[ax] ? len : 0.0;
-        f.tau[ax] = tol_.gap_rel * size_ * len + noise_[ax];
+        f.tau[ax] = tol_.gap_rel * size_ * len + noise(ax);
         f.q[2 * ax] = v.nd[ax] - v.support[ax] - f.tau[ax];
         f.q[2 * ax + 1] = -v.nd[ax] - v.support[ax] - f.tau[ax];
     }

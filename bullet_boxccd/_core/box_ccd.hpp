@@ -210,7 +210,6 @@ private:
     double h_[6];
     PVec cA_, cB_, d_;
     double gmag_[6];
-    double glen2_[6];  // length of each generator's s^2 coefficient vector
     int gdeg_[6], ddeg_;  // degree classes of g_ and d_ (0: constant, else 2)
     bool turning_;        // some generator is not constant
     int normal_degree(int axis) const {  // of n_[axis], the cross product of its two generators
@@ -218,7 +217,9 @@ private:
     }
     double dmag_, hmag_;
     double size_;  // world size used by gap_rel
-    double noise_[15];  // rounding allowance of each axis' facets
+    double noise(int ax) const {  // rounding allowance of an axis' facets
+        return tol_.rounding * kEps * (dmag_ + hmag_) * gmag_[axis_generator(ax, 0)] * gmag_[axis_generator(ax, 1)];
+    }
     // Cofactor terms, as polynomials: n_[0], n_[3] and the determinants come
     // with the problem (the regularity check needs them); the rest is built on
     // first use, through the accessors below. Most queries need few of them: a
