@@ -285,9 +285,29 @@ def test_overflowing_magnitudes_are_a_typed_error():
         time_of_impact(big, QuadraticMotion.static(np.diag([1e300, 1e300, 1e300, 1.0])), CUBE, STATIC)
 
 
-def test_wrong_argument_types():
-    with pytest.raises(InvalidInputError, match="m_a: expected a QuadraticMotion"):
-        time_of_impact(CUBE, np.eye(4), CUBE, STATIC)
+@pytest.mark.parametrize(
+    "args, error, message",
+    [
+        ((CUBE, np.eye(4), CUBE, STATIC), InvalidInputError, "m_a: expected a QuadraticMotion"),
+        ((STATIC, CUBE, CUBE, STATIC), InvalidInputError, "a: expected a Box, got QuadraticMotion"),
+        ((CUBE, STATIC, CUBE, None), InvalidInputError, "m_b: expected a QuadraticMotion, got NoneType"),
+        ((CUBE, STATIC, CUBE, STATIC, (0.0, 1.0, 2.0)), InvalidShapeError, r"t_range: expected shape \(2,\)"),
+        ((CUBE, STATIC, CUBE, STATIC, "ab"), InvalidShapeError, "t_range: cannot be read"),
+        ((CUBE, STATIC, CUBE, STATIC, (0.0, 1.0), "tight"), InvalidInputError, "tolerances: expected a Tolerances"),
+    ],
+)
+def test_wrong_argument_types(args, error, message):
+    """The single query's fast path hands its arguments straight to the core; whatever
+    the core rejects by type still gets the named error."""
+    with pytest.raises(error, match=message):
+        time_of_impact(*args)
+
+
+def test_time_range_forms_agree():
+    """Ints, lists and arrays are valid time ranges and give the same answer."""
+    m_b = QuadraticMotion.ballistic((5.0, 0.3, 0.2), (-10.0, 0.0, 0.0))
+    ts = {time_of_impact(CUBE, STATIC, CUBE, m_b, r).t for r in [(0.0, 1.0), (0, 1), [0, 1], np.array([0.0, 1.0])]}
+    assert len(ts) == 1
 
 
 def test_errors_are_value_errors():
