@@ -247,5 +247,6 @@ def bms_planes(a, m_a, b, m_b, t: float, t_range=(0.0, 1.0), tolerances: Toleran
     normals.
     """
     t0, t1 = _t_range(t_range)
-    normals, offsets, features = _core.planes(*_pair_args(a, m_a, b, m_b), t0, t1, float(t), _core_tolerances(tolerances))
+    tol = _core_tolerances(tolerances)
+    normals, offsets, features = _core.planes(*_pair_args(a, m_a, b, m_b), t0, t1, float(t), tol)
     return [Plane(normals[k], float(offsets[k]), Feature(*features[k])) for k in range(30)]

@@ -288,19 +288,19 @@ def test_overflowing_magnitudes_are_a_typed_error():
 @pytest.mark.parametrize(
     "args, error, message",
     [
-        ((CUBE, np.eye(4), CUBE, STATIC), InvalidInputError, "m_a: expected a QuadraticMotion"),
-        ((STATIC, CUBE, CUBE, STATIC), InvalidInputError, "a: expected a Box, got QuadraticMotion"),
-        ((CUBE, STATIC, CUBE, None), InvalidInputError, "m_b: expected a QuadraticMotion, got NoneType"),
-        ((CUBE, STATIC, CUBE, STATIC, (0.0, 1.0, 2.0)), InvalidShapeError, r"t_range: expected shape \(2,\)"),
-        ((CUBE, STATIC, CUBE, STATIC, "ab"), InvalidShapeError, "t_range: cannot be read"),
-        ((CUBE, STATIC, CUBE, STATIC, (0.0, 1.0), "tight"), InvalidInputError, "tolerances: expected a Tolerances"),
+        (lambda: (CUBE, np.eye(4), CUBE, STATIC), InvalidInputError, "m_a: expected a QuadraticMotion"),
+        (lambda: (STATIC, CUBE, CUBE, STATIC), InvalidInputError, "a: expected a Box, got QuadraticMotion"),
+        (lambda: (CUBE, STATIC, CUBE, None), InvalidInputError, "m_b: expected a QuadraticMotion, got NoneType"),
+        (lambda: (CUBE, STATIC, CUBE, STATIC, (0.0, 1.0, 2.0)), InvalidShapeError, r"t_range: expected shape \(2,\)"),
+        (lambda: (CUBE, STATIC, CUBE, STATIC, "ab"), InvalidShapeError, "t_range: cannot be read"),
+        (lambda: (CUBE, STATIC, CUBE, STATIC, (0.0, 1.0), "tight"), InvalidInputError, "tolerances: expected a"),
     ],
 )
 def test_wrong_argument_types(args, error, message):
     """The single query's fast path hands its arguments straight to the core; whatever
     the core rejects by type still gets the named error."""
     with pytest.raises(error, match=message):
-        time_of_impact(*args)
+        time_of_impact(*args())
 
 
 def test_time_range_forms_agree():

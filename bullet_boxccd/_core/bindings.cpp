@@ -100,7 +100,9 @@ struct Names {
             feature[k] = nb::str(feature_name({int8_t(k / 9 - 1), int8_t(k / 3 % 3 - 1), int8_t(k % 3 - 1)}).c_str());
         for (int k = 0; k < 3; ++k) kind[k] = nb::str(kKind[k]);
     }
-    const nb::object &of(const std::array<int8_t, 3> &s) const { return feature[9 * (s[0] + 1) + 3 * (s[1] + 1) + s[2] + 1]; }
+    const nb::object &of(const std::array<int8_t, 3> &s) const {
+        return feature[9 * (s[0] + 1) + 3 * (s[1] + 1) + s[2] + 1];
+    }
 };
 const Names &names() {
     static const Names *n = new Names;

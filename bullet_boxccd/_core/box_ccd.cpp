@@ -419,7 +419,8 @@ void Problem::ensure_axis(const Section &sec, int ax) const {
         const double mid = 0.5 * (sec.lo + sec.hi);
         for (int g = 0; g < 6; ++g) sec.g_mid[g] = g_[g].at2(mid);
         Vec face[6];
-        for (int ax = 0; ax < 6; ++ax) face[ax] = cross3(sec.g_mid[axis_generator(ax, 0)], sec.g_mid[axis_generator(ax, 1)]);
+        for (int ax = 0; ax < 6; ++ax)
+            face[ax] = cross3(sec.g_mid[axis_generator(ax, 0)], sec.g_mid[axis_generator(ax, 1)]);
         triple_products(face, sec.g_mid, sec.pv_mid);
         sec.mid_ready = true;
     }
