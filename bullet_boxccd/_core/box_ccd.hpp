@@ -129,7 +129,7 @@ private:
         mutable std::array<double, 15> tau;    // touching tolerance + rounding allowance
         mutable uint32_t ready = 0;            // which axes are filled
         mutable bool mid_ready = false;        // the shared values at mid-section below
-        mutable double pv_mid[20];             // the 20 projection polynomials at mid-section
+        mutable double pv_mid[20];             // the 20 triple products at mid-section
         mutable std::array<double, 3> g_mid[6];
         mutable std::array<Poly, 30> Q;        // facet polynomial minus tau: <= 0 is touching
         mutable uint32_t built = 0;            // which Q are built
