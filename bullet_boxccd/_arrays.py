@@ -20,7 +20,7 @@ def as_float_array(name: str, value, shape: tuple, finite: bool = False) -> np.n
         raise InvalidShapeError(f"{name}: expected real numbers, got complex values")
     try:
         a = np.ascontiguousarray(value, dtype=np.float64)
-    except (TypeError, ValueError) as e:
+    except (TypeError, ValueError, OverflowError) as e:  # OverflowError: an int beyond float64
         raise InvalidShapeError(f"{name}: cannot be read as a float64 array ({e})") from None
     if a.ndim != len(shape) or any(want not in (-1, got) for want, got in zip(shape, a.shape)):
         want = "(" + ", ".join("N" if s == -1 else str(s) for s in shape) + ("," if len(shape) == 1 else "") + ")"

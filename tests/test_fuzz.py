@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 from cases import FAMILIES, batch_rows, make_case
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 from bullet_boxccd import (
@@ -22,6 +22,8 @@ from bullet_boxccd import (
 HOSTILE = st.sampled_from([0.0, -0.0, 1.0, -1.0, 5e-324, 2.2e-308, 1e-300, 1e300, 1.7e308, -1.7e308, np.nan, np.inf,
                            -np.inf, 0.5, 3.0, 1e-9])
 FLOATS = st.one_of(HOSTILE, st.floats(allow_nan=True, allow_infinity=True, width=64))
+CUBE = Box.centered((0.5, 0.5, 0.5))
+STATIC = QuadraticMotion.static()
 
 
 def valid_or_typed(fn, *args, **kw):
@@ -41,6 +43,15 @@ def test_box_construction(lo, hi):
 @given(st.one_of(st.none(), st.text(max_size=3), st.lists(FLOATS, max_size=5), st.integers()))
 def test_box_wrong_types(x):
     valid_or_typed(Box, x, (1.0, 1.0, 1.0))
+
+
+@given(st.lists(st.one_of(st.integers(), st.sampled_from([10**400, -(10**309), 2**1024])), min_size=2, max_size=3))
+@example([0, 10**400])
+def test_integers_of_any_size(values):
+    """Python ints beyond float64 (10**400) are a typed error wherever a float is read."""
+    valid_or_typed(Box, values, (1.0, 1.0, 1.0))
+    valid_or_typed(QuadraticMotion.ballistic, values, (1.0, 0.0, 0.0))
+    valid_or_typed(time_of_impact, CUBE, STATIC, CUBE, STATIC, tuple(values))
 
 
 def motion_coeffs(draw_entries):
