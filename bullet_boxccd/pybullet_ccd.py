@@ -36,6 +36,7 @@ filters set directly on pybullet are invisible here: set them through
 from __future__ import annotations
 
 import time
+import uuid
 from dataclasses import dataclass, field, replace
 from itertools import chain
 
@@ -153,12 +154,22 @@ class BoxCCD:
         self._non_box: list = []
         self._unreadable: list = []
         self._world_key = None
+        # A mark this instance leaves in the world (pybullet user data on the first
+        # body): p.resetSimulation() removes it, so a rebuilt world is rediscovered
+        # even when it has the same bodies' count and ids.
+        self._mark = f"bullet_boxccd.{uuid.uuid4().hex}"
+        self._mark_id = -1
         self.refresh()
 
     # ------------------------------------------------------------ discovery
     def _world_signature(self):
-        n = p.getNumBodies(physicsClientId=self.cid)
-        return n, (p.getBodyUniqueId(n - 1, physicsClientId=self.cid) if n else -1)
+        """Changes when bodies are added or removed, or the world is reset."""
+        cid = self.cid
+        n = p.getNumBodies(physicsClientId=cid)
+        if not n:
+            return (0,)
+        marked = self._mark_id >= 0 and p.getUserData(self._mark_id, physicsClientId=cid) == self._mark.encode()
+        return n, p.getBodyUniqueId(n - 1, physicsClientId=cid), marked
 
     def register_box(self, body: int, link: int, half_extents, position=(0.0, 0.0, 0.0),
                      orientation=(0.0, 0.0, 0.0, 1.0)) -> None:
@@ -182,7 +193,8 @@ class BoxCCD:
             self._filtered.add(key)
 
     def refresh(self) -> None:
-        """Rediscover every box in the world (called automatically when bodies are added or removed)."""
+        """Rediscover every box in the world (called automatically when bodies are added or
+        removed, and after ``p.resetSimulation()``)."""
         cid = self.cid
         body, link, static, rewind, box_frame, half, X_CS = [], [], [], [], [], [], []
         self._non_box, self._unreadable = [], []
@@ -224,6 +236,9 @@ class BoxCCD:
         # A box is swept when its fastest point moves more than this in a step.
         self._sweep_reach = self.sweep_threshold * 2.0 * half.min(axis=1)
         self.stats.tracked_boxes = len(half)
+        if p.getNumBodies(physicsClientId=cid):
+            first = p.getBodyUniqueId(0, physicsClientId=cid)
+            self._mark_id = p.addUserData(first, self._mark, self._mark, physicsClientId=cid)
         self._world_key = self._world_signature()
 
     def _shapes(self, b, lk):

@@ -312,6 +312,26 @@ def test_discovery_lists_what_is_left_to_pybullet(cid):
     assert ccd.stats.tracked_boxes == 2
 
 
+def test_world_rebuilt_after_reset_simulation_is_rediscovered(cid):
+    """p.resetSimulation() and a new scene with the same bodies' count and ids: the
+    plugin must not sweep the old scene's boxes. In the old scene body 1 was a static
+    block, in the new one it is a cube at 100 m/s that tunnels through a 1 mm wall in
+    one step unless it is swept."""
+    reset(cid)
+    box(cid, [0.0005, 1, 1], [0.0, 0, 0], mass=0.0)
+    box(cid, [0.5, 0.5, 0.5], [-3.0, 0, 0], mass=0.0)
+    ccd = BoxCCD(cid)
+    ccd.step()
+    reset(cid)
+    box(cid, [0.0005, 1, 1], [0.0, 0, 0], mass=0.0)
+    cube = box(cid, [0.05] * 3, [-0.3, 0, 0])
+    p.resetBaseVelocity(cube, [100, 0, 0], [0, 0, 0], physicsClientId=cid)
+    for _ in range(10):
+        ccd.step()
+    assert com_x(cid, cube) < 0.0
+    assert ccd.stats.tracked_boxes == 2
+
+
 def test_static_wall_moved_by_the_user_is_seen_where_it_is(cid):
     """A mass-0 wall teleported between steps (a kinematic obstacle): the cube is
     stopped by the wall where it now is, not by where it was when BoxCCD started."""
