@@ -2,12 +2,16 @@
 
 from __future__ import annotations
 
+import pickle
+
 import numpy as np
 import pytest
 from cases import FAMILIES, batch_rows, make_case
 
 from bullet_boxccd import (
     Box,
+    Contact,
+    Feature,
     InvalidBoxError,
     InvalidInputError,
     InvalidMotionError,
@@ -293,6 +297,10 @@ def test_overflowing_magnitudes_are_a_typed_error():
         (lambda: (CUBE, STATIC, CUBE, None), InvalidInputError, "m_b: expected a QuadraticMotion, got NoneType"),
         (lambda: (CUBE, STATIC, CUBE, STATIC, (0.0, 1.0, 2.0)), InvalidShapeError, r"t_range: expected shape \(2,\)"),
         (lambda: (CUBE, STATIC, CUBE, STATIC, "ab"), InvalidShapeError, "t_range: cannot be read"),
+        (lambda: (CUBE, STATIC, CUBE, STATIC, b"\x00\x01"), InvalidShapeError, "t_range: cannot be read"),
+        (lambda: (CUBE, STATIC, CUBE, STATIC, np.array([0, 1 + 5j])), InvalidShapeError, "t_range: expected real"),
+        (lambda: (CUBE, STATIC, CUBE, STATIC, (np.complex128(0), np.complex128(1))), InvalidShapeError,
+         "t_range: expected real"),
         (lambda: (CUBE, STATIC, CUBE, STATIC, (0.0, 1.0), "tight"), InvalidInputError, "tolerances: expected a"),
     ],
 )
@@ -301,6 +309,19 @@ def test_wrong_argument_types(args, error, message):
     the core rejects by type still gets the named error."""
     with pytest.raises(error, match=message):
         time_of_impact(*args())
+
+
+def test_contacts_behave_like_their_named_tuples():
+    """The core builds Contact and Feature itself: they must compare, hash, pickle and
+    convert like instances made in Python."""
+    c = time_of_impact(CUBE, STATIC, CUBE, QuadraticMotion.ballistic((5.0, 0.3, 0.2), (-10.0, 0.0, 0.0)))
+    f = Feature(*c.feature)
+    assert type(c) is Contact and type(c.feature) is Feature
+    assert c.feature == f and hash(c.feature) == hash(f) and {f: 1}[c.feature] == 1
+    assert c._asdict()["t"] == c.t and c._replace(t=0.0).t == 0.0 and repr(c).startswith("Contact(t=")
+    back = pickle.loads(pickle.dumps(c))
+    assert back.t == c.t and back.feature == c.feature and np.array_equal(back.point, c.point)
+    assert c.point.flags.owndata and c.point.shape == (3,) and c.normal.dtype == np.float64
 
 
 def test_time_range_forms_agree():

@@ -5,7 +5,6 @@
 #include <nanobind/ndarray.h>
 #include <nanobind/stl/string.h>
 #include <nanobind/stl/array.h>
-#include <nanobind/stl/pair.h>
 #include <nanobind/stl/tuple.h>
 
 // numpy's own C API makes the two small arrays of a contact: an array made
@@ -120,40 +119,33 @@ ResultTypes &result_types() {
 }
 
 void set_result_types(nb::handle contact, nb::handle feature) {
-    for (nb::handle t : {contact, feature}) {
-        // A NamedTuple instance is a tuple with no other storage (__slots__ = ()),
-        // so it can be made as a tuple of its type, as CPython's structseq does.
-        if (!PyType_Check(t.ptr()) || !PyType_IsSubtype((PyTypeObject *)t.ptr(), &PyTuple_Type) ||
-            ((PyTypeObject *)t.ptr())->tp_basicsize != PyTuple_Type.tp_basicsize ||
-            ((PyTypeObject *)t.ptr())->tp_dictoffset != 0)
+    for (nb::handle t : {contact, feature})
+        if (!PyType_Check(t.ptr()) || !PyType_IsSubtype((PyTypeObject *)t.ptr(), &PyTuple_Type))
             throw nb::type_error("set_result_types: expected NamedTuple classes");
-    }
     result_types().contact = nb::borrow(contact);
     result_types().feature = nb::borrow(feature);
 }
 
-// A new instance of tuple subclass `type` holding `items` (new references, stolen).
-nb::object new_tuple(const nb::object &type, std::initializer_list<PyObject *> items) {
-    for (PyObject *o : items)
-        if (!o) {
-            for (PyObject *q : items) Py_XDECREF(q);
-            throw nb::python_error();
-        }
-    PyTypeObject *tp = (PyTypeObject *)type.ptr();
-    PyObject *r = tp->tp_alloc(tp, (Py_ssize_t)items.size());
-    Py_ssize_t i = 0;
-    for (PyObject *o : items) {
-        if (r) PyTuple_SET_ITEM(r, i++, o);
-        else Py_DECREF(o);
-    }
-    if (!r) throw nb::python_error();
-    return nb::steal(r);
+// A new reference from the C API, or the pending Python error as an exception.
+nb::object checked(PyObject *o) {
+    if (!o) throw nb::python_error();
+    return nb::steal(o);
 }
 
-PyObject *new_vec3(const std::array<double, 3> &v) {
+// An instance of tuple subclass `type` holding `items`: tuple.__new__(type, items),
+// what NamedTuple._make does, without running any Python code.
+nb::object new_named(const nb::object &type, std::initializer_list<nb::handle> items) {
+    nb::object t = checked(PyTuple_New((Py_ssize_t)items.size()));
+    Py_ssize_t i = 0;
+    for (nb::handle x : items) PyTuple_SET_ITEM(t.ptr(), i++, x.inc_ref().ptr());
+    nb::object args = checked(PyTuple_Pack(1, t.ptr()));
+    return checked(PyTuple_Type.tp_new((PyTypeObject *)type.ptr(), args.ptr(), nullptr));
+}
+
+nb::object new_vec3(const std::array<double, 3> &v) {
     npy_intp n = 3;
-    PyObject *a = PyArray_SimpleNew(1, &n, NPY_DOUBLE);
-    if (a) std::copy(v.begin(), v.end(), static_cast<double *>(PyArray_DATA((PyArrayObject *)a)));
+    nb::object a = checked(PyArray_SimpleNew(1, &n, NPY_DOUBLE));
+    std::copy(v.begin(), v.end(), static_cast<double *>(PyArray_DATA((PyArrayObject *)a.ptr())));
     return a;
 }
 
@@ -162,17 +154,28 @@ nb::object hit_result(const Hit &h) {
     const ResultTypes &types = result_types();
     if (!types.contact.is_valid()) throw std::logic_error("bullet_boxccd.solver did not register its result types");
     const Names &n = names();
-    nb::object feature = new_tuple(types.feature, {n.kind[kind_index(h.facet)].inc_ref().ptr(),
-                                                   n.of(h.feat_a).inc_ref().ptr(), n.of(h.feat_b).inc_ref().ptr()});
-    return new_tuple(types.contact, {PyFloat_FromDouble(h.t), new_vec3(h.point), new_vec3(h.normal),
-                                     feature.release().ptr(), nb::bool_(h.initial).release().ptr()});
+    const nb::object feature = new_named(types.feature, {n.kind[kind_index(h.facet)], n.of(h.feat_a), n.of(h.feat_b)});
+    const nb::object t = checked(PyFloat_FromDouble(h.t)), point = new_vec3(h.point), normal = new_vec3(h.normal);
+    return new_named(types.contact, {t, point, normal, feature, h.initial ? Py_True : Py_False});
 }
 
-// A Contact or None. t_range comes whole: the Python wrapper passes its argument
-// through, and falls back to its own checks when nanobind rejects it.
+// t_range in the common form, a tuple of two floats (or float subclasses such as
+// numpy.float64); anything else is a TypeError, on which the Python wrapper runs
+// its own checks (they name what is wrong, and convert what is valid).
+std::pair<double, double> float_pair(nb::handle h) {
+    PyObject *o = h.ptr();
+    if (PyTuple_CheckExact(o) && PyTuple_GET_SIZE(o) == 2) {
+        PyObject *a = PyTuple_GET_ITEM(o, 0), *b = PyTuple_GET_ITEM(o, 1);
+        if (PyFloat_Check(a) && PyFloat_Check(b)) return {PyFloat_AS_DOUBLE(a), PyFloat_AS_DOUBLE(b)};
+    }
+    throw nb::type_error("t_range: expected a tuple of two floats");
+}
+
+// A Contact or None. t_range comes whole (see float_pair).
 nb::object solve(const BoxData &a, const MotionData &m_a, const BoxData &b, const MotionData &m_b,
-                 const std::pair<double, double> &t_range, const Tolerances &tol) {
-    const Problem p = make_problem(a, m_a, b, m_b, t_range.first, t_range.second, tol);
+                 nb::handle t_range, const Tolerances &tol) {
+    const auto [t0, t1] = float_pair(t_range);
+    const Problem p = make_problem(a, m_a, b, m_b, t0, t1, tol);
     const Hit h = p.solve(true);
     if (!h.hit) return nb::none();
     return hit_result(h);
