@@ -378,23 +378,10 @@ def per_query_ns(fn, items, loops: int, repeats: int, desc: str):
     return out
 
 
-def batch_throughput(args, repeats: int = 5) -> float:
-    """Best-of-``repeats`` pairs/s of ``time_of_impact_batch`` over the whole arrays."""
-    n = len(args[0])
-    if n == 0:
-        return float("nan")
-    time_of_impact_batch(*(a[: min(n, 256)] for a in args))  # warm-up
-    best = math.inf
-    for _ in range(repeats):
-        t0 = time.perf_counter_ns()
-        time_of_impact_batch(*args)
-        best = min(best, time.perf_counter_ns() - t0)
-    return n / (best * 1e-9)
-
-
-def batch_throughput_threads(args, threads: int, repeats: int = 5) -> float:
-    """Like batch_throughput, with the arrays split over ``threads`` Python threads, each
-    calling ``time_of_impact_batch`` on its part: it scales only if the core releases the GIL."""
+def batch_throughput(args, threads: int = 1, repeats: int = 5) -> float:
+    """Best-of-``repeats`` pairs/s of ``time_of_impact_batch`` over the whole arrays, split
+    over ``threads`` Python threads (each calls it on its part: more than one thread
+    scales only if the core releases the GIL)."""
     n = len(args[0])
     if n == 0:
         return float("nan")
@@ -712,7 +699,7 @@ def main(argv=None):
             )
             threads = min(os.cpu_count() or 1, 4)
             if threads > 1:
-                thr_t = batch_throughput_threads(bargs, threads)
+                thr_t = batch_throughput(bargs, threads)
                 rows.append(
                     dict(
                         family=fname,

@@ -342,8 +342,9 @@ class BoxCCD:
         fast_frames = sorted(set(fr.box_frame[fast].tolist()))
         S[fast_frames, :7] = self._read_poses(fast_frames)
         rows = _core.path_rows(S, dt, fast, fr.box_frame, fr.X_CS, fr.half)
+        bounds = _core.swept_bounds(rows)
         near = set(fast_frames)
-        for b in (_core.swept_bounds(rows) + _WIDEN * (slack + 1e-9)).tolist():
+        for b in (bounds + _WIDEN * (slack + 1e-9)).tolist():
             found = p.getOverlappingObjects(b[:3], b[3:], physicsClientId=self.cid) or ()
             near.update(self._frame_index[key] for key in found if key in self._frame_index)
         # Static partners are read too: a mass-0 body can be moved by the user
@@ -356,8 +357,9 @@ class BoxCCD:
         st.swept_boxes += len(fast)
         boxes = np.array(fast.tolist() + [b for f in partners for b in self._frame_boxes[f]], dtype=np.int64)
         if len(boxes) > len(fast):
-            rows = np.concatenate([rows, _core.path_rows(S, dt, boxes[len(fast):], fr.box_frame, fr.X_CS, fr.half)])
-        pairs = _core.candidate_pairs(rows, len(fast), fr.box_frame[boxes], fr.body, self._frame_flags)
+            more = _core.path_rows(S, dt, boxes[len(fast):], fr.box_frame, fr.X_CS, fr.half)
+            rows, bounds = np.concatenate([rows, more]), np.concatenate([bounds, _core.swept_bounds(more)])
+        pairs = _core.candidate_pairs(bounds, len(fast), fr.box_frame[boxes], fr.body, self._frame_flags)
         if self._filtered and len(pairs):
             pairs = pairs[[self._pair_allowed(*boxes[pr].tolist()) for pr in pairs]]
         t2 = time.perf_counter()

@@ -151,9 +151,7 @@ class Plane(NamedTuple):
 
 
 def _t_range(t_range) -> tuple[float, float]:
-    if type(t_range) is tuple and len(t_range) == 2 and type(t_range[0]) is float and type(t_range[1]) is float:
-        return t_range  # the common case, without an array round trip (values are checked by the core)
-    r = as_float_array("t_range", t_range, (2,))
+    r = as_float_array("t_range", t_range, (2,))  # values are checked by the core
     return float(r[0]), float(r[1])
 
 
@@ -164,8 +162,6 @@ def _core_tolerances(tolerances):
 
 
 def _pair_args(a, m_a, b, m_b):
-    if type(a) is Box and type(b) is Box and type(m_a) is QuadraticMotion and type(m_b) is QuadraticMotion:
-        return a._data, m_a._data, b._data, m_b._data  # the common case, a quarter of the cost of the loop
     for name, v, cls in (("a", a, Box), ("m_a", m_a, QuadraticMotion), ("b", b, Box), ("m_b", m_b, QuadraticMotion)):
         if not isinstance(v, cls):
             raise InvalidInputError(f"{name}: expected a {cls.__name__}, got {type(v).__name__}")

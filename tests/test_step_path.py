@@ -135,8 +135,8 @@ def test_candidate_pairs_match_brute_force():
         rows = rows_of(states, boxes)
         n_fast = int(rng.integers(0, 6))
         frame = np.array([f for f, _, _ in boxes], dtype=np.int64)
-        got = {tuple(x) for x in _core.candidate_pairs(rows, n_fast, frame, frame_body, flags).tolist()}
         bounds = _core.swept_bounds(rows)
+        got = {tuple(x) for x in _core.candidate_pairs(bounds, n_fast, frame, frame_body, flags).tolist()}
         want = set()
         for i in range(n_fast):
             for j in range(len(boxes)):

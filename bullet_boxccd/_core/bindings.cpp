@@ -344,18 +344,18 @@ Out<double, -1, 7> py_frame_poses(const States &state, double dt, const Index<-1
     return Out<double, -1, 7>(out, {n, 7}, owner);
 }
 
-Out<int64_t, -1, 2> py_candidate_pairs(const PathRows &rows, int64_t n_fast, const Index<-1> &frame,
+Out<int64_t, -1, 2> py_candidate_pairs(const In<-1, 6> &bounds, int64_t n_fast, const Index<-1> &frame,
                                        const Index<-1> &frame_body, const nb::ndarray<const uint8_t, nb::shape<-1>,
                                        nb::c_contig, nb::device::cpu> &frame_flags) {
-    const int64_t n = int64_t(rows.shape(0));
+    const int64_t n = int64_t(bounds.shape(0));
     if (frame.shape(0) != size_t(n) || n_fast < 0 || n_fast > n)
-        throw nb::value_error(("candidate_pairs: " + std::to_string(n) + " rows, " + std::to_string(frame.shape(0)) +
+        throw nb::value_error(("candidate_pairs: " + std::to_string(n) + " bounds, " + std::to_string(frame.shape(0)) +
                                " frames and n_fast = " + std::to_string(n_fast) +
-                               "; expected one frame per row and 0 <= n_fast <= rows")
+                               "; expected one frame per box and 0 <= n_fast <= boxes")
                                   .c_str());
     if (frame_flags.shape(0) != frame_body.shape(0)) throw nb::value_error("frame tables differ in length");
     for (int64_t i = 0; i < n; ++i) check_index(frame.data()[i], frame_body.shape(0), "frame");
-    const auto pairs = candidate_pairs(rows.data(), n, n_fast, frame.data(), frame_body.data(), frame_flags.data());
+    const auto pairs = candidate_pairs(bounds.data(), n, n_fast, frame.data(), frame_body.data(), frame_flags.data());
     auto [out, owner] = new_buffer<int64_t>(2 * pairs.size());
     for (size_t k = 0; k < pairs.size(); ++k) {
         out[2 * k] = pairs[k].first;
@@ -448,7 +448,7 @@ NB_MODULE(_core, m) {
     m.def("path_rows", &py_path_rows, nb::arg("state"), nb::arg("dt"), nb::arg("boxes"), nb::arg("box_frame"),
           nb::arg("X_CS"), nb::arg("half"));
     m.def("frame_poses", &py_frame_poses, nb::arg("state"), nb::arg("dt"), nb::arg("frames"), nb::arg("taus"));
-    m.def("candidate_pairs", &py_candidate_pairs, nb::arg("rows"), nb::arg("n_fast"), nb::arg("frame"),
+    m.def("candidate_pairs", &py_candidate_pairs, nb::arg("bounds"), nb::arg("n_fast"), nb::arg("frame"),
           nb::arg("frame_body"), nb::arg("frame_flags"));
     m.def("fit_path", &py_fit_path, nb::arg("box"), nb::arg("lo"), nb::arg("hi"));
     m.def("first_touches", &py_first_touches, nb::arg("rows"), nb::arg("pairs"), nb::arg("fit_tolerance"),

@@ -303,15 +303,11 @@ bool Problem::ignorable_switch(int k) const {
 // n' = a' x b + a x b'.
 Problem::SwitchProbe Problem::probe_switches(double from, double to) const {
     SwitchProbe pr;
-    const double mid = 0.5 * (from + to), w = 0.5 * (to - from);
+    const double w = 0.5 * (to - from);
     pr.w = w;
-    Vec val[6], der[6];
+    const Axis at_mid = sample_at(0.5 * (from + to));
+    const Vec *val = at_mid.val + 1, *der = at_mid.der + 1;  // the generators and their derivatives
     for (int g = 0; g < 6; ++g) {
-        for (int r = 0; r < 3; ++r) {
-            const Poly &p = g_[g].x[r];
-            val[g][r] = eval2(p, mid);
-            der[g][r] = p.c[1] + 2.0 * p.c[2] * mid;
-        }
         const double len = norm3(val[g]), dlen = norm3(der[g]);
         const double len2 = norm3({g_[g].x[0].c[2], g_[g].x[1].c[2], g_[g].x[2].c[2]});  // of the s^2 term
         pr.v[g] = len + (dlen + len2 * w) * w;

@@ -257,16 +257,14 @@ Hit path_contact(const double *box_a, const double *box_b, double lo, double hi,
     return h;
 }
 
-std::vector<std::pair<int64_t, int64_t>> candidate_pairs(const double *rows, int64_t n, int64_t n_fast,
+std::vector<std::pair<int64_t, int64_t>> candidate_pairs(const double *bounds, int64_t n, int64_t n_fast,
                                                          const int64_t *frame, const int64_t *frame_body,
                                                          const uint8_t *frame_flags) {
-    std::vector<double> b(6 * n);
-    for (int64_t i = 0; i < n; ++i) swept_bounds(rows + kPathBoxSize * i, &b[6 * i], &b[6 * i + 3]);
     std::vector<std::pair<int64_t, int64_t>> out;
     for (int64_t i = 0; i < n_fast; ++i)
         for (int64_t j = 0; j < n; ++j) {
             if (j == i || (j < n_fast && j < i)) continue;
-            const double *bi = &b[6 * i], *bj = &b[6 * j];
+            const double *bi = bounds + 6 * i, *bj = bounds + 6 * j;
             if (!(bi[0] <= bj[3] && bj[0] <= bi[3] && bi[1] <= bj[4] && bj[1] <= bi[4] && bi[2] <= bj[5] &&
                   bj[2] <= bi[5]))
                 continue;

@@ -80,12 +80,13 @@ double first_touch(const double *box_a, const double *box_b, double fit_toleranc
 // geometry (one fit over the window, inflated likewise); t is a step fraction.
 Hit path_contact(const double *box_a, const double *box_b, double lo, double hi, const Tolerances &tol);
 
-// Pairs of the n path rows whose swept bounds meet, for the broad phase. Rows
-// 0 .. n_fast - 1 are the fast boxes: every pair has a fast first member, and a
-// pair of fast boxes appears once. frame[i] is row i's frame; boxes of one
-// frame never pair, nor boxes of two static frames, nor boxes of one body unless
-// it self-collides (flags[frame]: bit 0 static, bit 1 self-collides).
-std::vector<std::pair<int64_t, int64_t>> candidate_pairs(const double *rows, int64_t n, int64_t n_fast,
+// Pairs of the n boxes whose swept bounds meet, for the broad phase: bounds is
+// (n, 6), lo then hi of each box (swept_bounds). Boxes 0 .. n_fast - 1 are the
+// fast ones: every pair has a fast first member, and a pair of fast boxes
+// appears once. frame[i] is box i's frame; boxes of one frame never pair, nor
+// boxes of two static frames, nor boxes of one body unless it self-collides
+// (flags[frame]: bit 0 static, bit 1 self-collides).
+std::vector<std::pair<int64_t, int64_t>> candidate_pairs(const double *bounds, int64_t n, int64_t n_fast,
                                                          const int64_t *frame, const int64_t *frame_body,
                                                          const uint8_t *frame_flags);
 
