@@ -10,7 +10,9 @@ from .solver import (
     InvalidMotionError,
     InvalidShapeError,
     InvalidTimeRangeError,
+    InvalidToleranceError,
     NonFiniteInputError,
+    Outcome,
     Plane,
     SingularMotionError,
     Tolerances,
@@ -27,6 +29,7 @@ __all__ = [
     "QuadraticMotion",
     "Contact",
     "Feature",
+    "Outcome",
     "Plane",
     "Tolerances",
     "time_of_impact",
@@ -40,6 +43,7 @@ __all__ = [
     "InvalidMotionError",
     "SingularMotionError",
     "InvalidTimeRangeError",
+    "InvalidToleranceError",
 ]
 
 

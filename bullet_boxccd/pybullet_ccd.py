@@ -46,7 +46,7 @@ import pybullet as p
 from . import _core
 from .geometry import Box
 from .motion import quat_to_matrix
-from .solver import DEFAULT_TOLERANCES, Contact, Feature, Tolerances
+from .solver import DEFAULT_TOLERANCES, Contact, Feature, Outcome, Tolerances
 
 __all__ = ["BoxCCD", "CCDEvent", "CCDStats"]
 
@@ -470,7 +470,8 @@ class BoxCCD:
         cannot be missed."""
         r = _core.path_contact(pair, lo, hi, self.tolerances._core)
         if r is None:  # cannot happen for a true touch; report the window start
-            return Contact(lo, np.full(3, np.nan), np.full(3, np.nan), Feature("", "", ""), lo == 0.0)
+            return Contact(lo, np.full(3, np.nan), np.full(3, np.nan), Feature("", "", ""), lo == 0.0,
+                           Outcome.SEPARATED)
         return r
 
     def _rewind_time(self, pair, boxes, tau_first):

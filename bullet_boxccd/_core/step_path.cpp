@@ -91,7 +91,7 @@ double path_depth(const double *box_a, const double *box_b, double tau) {
             const double a[3] = {A.R[0][i], A.R[1][i], A.R[2][i]}, b[3] = {B.R[0][j], B.R[1][j], B.R[2][j]};
             double u[3] = {a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]};
             const double n = std::sqrt(u[0] * u[0] + u[1] * u[1] + u[2] * u[2]);
-            if (!(n > 1e-9)) continue;  // parallel edges give no axis
+            if (!(n > kParallel)) continue;  // parallel edges give no axis (unit a, b: |a x b| = sin)
             for (double &x : u) x /= n;
             depth = std::fmin(depth, overlap_on(u, A, ha, B, hb, d));
         }
@@ -102,7 +102,7 @@ void swept_bounds(const double *box, double *lo, double *hi) {
     const double *h = box + 39;
     const double r = reach_radius(box);
     const double q = 0.25 * box[22];
-    const double sag = r * q * q / 8.0 + 1e-9;
+    const double sag = r * q * q / 8.0;
     for (int i = 0; i < 3; ++i) {
         lo[i] = std::numeric_limits<double>::infinity();
         hi[i] = -lo[i];
@@ -111,8 +111,10 @@ void swept_bounds(const double *box, double *lo, double *hi) {
         const Pose P = box_pose(box, 0.25 * k);
         for (int i = 0; i < 3; ++i) {
             const double e = std::fabs(P.R[i][0]) * h[0] + std::fabs(P.R[i][1]) * h[1] + std::fabs(P.R[i][2]) * h[2];
-            lo[i] = std::fmin(lo[i], P.c[i] - e - sag);
-            hi[i] = std::fmax(hi[i], P.c[i] + e + sag);
+            // The pose's rounding: a few eps of the coordinate's magnitude.
+            const double pad = sag + kBoundsRounding * kEps * (std::fabs(P.c[i]) + r);
+            lo[i] = std::fmin(lo[i], P.c[i] - e - pad);
+            hi[i] = std::fmax(hi[i], P.c[i] + e + pad);
         }
     }
 }
@@ -120,13 +122,13 @@ void swept_bounds(const double *box, double *lo, double *hi) {
 double first_depth(const double *box_a, const double *box_b, double tau_from, double target) {
     const double span = 1.0 - tau_from;
     double lo = tau_from, hi = kNaN;
-    for (int k = 48; k >= 0; --k) {
+    for (int k = kDepthLookAhead; k >= 0; --k) {
         const double t = tau_from + std::ldexp(span, -k);
         if (path_depth(box_a, box_b, t) >= target) { hi = t; break; }
         lo = t;
     }
     if (std::isnan(hi)) return hi;
-    for (int it = 0; it < 200 && hi - lo > 1e-15; ++it) {
+    for (int it = 0; it < kMaxDepthHalvings && hi - lo > kDepthWidth; ++it) {
         const double mid = 0.5 * (lo + hi);
         if (mid <= lo || mid >= hi) break;
         if (path_depth(box_a, box_b, mid) >= target) hi = mid; else lo = mid;
@@ -235,25 +237,38 @@ bool finite_row(const double *box) {
 }  // namespace
 
 double first_touch(const double *box_a, const double *box_b, double fit_tolerance, const Tolerances &tol,
-                   long &solves) {
-    if (!finite_row(box_a) || !finite_row(box_b)) return kNaN;
+                   long &solves, Outcome &outcome) {
+    outcome = Outcome::Separated;
+    if (!finite_row(box_a) || !finite_row(box_b)) {
+        outcome = Outcome::NonFinite;
+        return kNaN;
+    }
     const int n = std::max(fit_pieces(box_a, fit_tolerance), fit_pieces(box_b, fit_tolerance));
     for (int k = 0; k < n; ++k) {  // pieces in order: the first that touches has the first touch
         const double lo = double(k) / n, hi = double(k + 1) / n;
         const FittedBox a(box_a, lo, hi, 0.0), b(box_b, lo, hi, 0.0);
-        const Hit h = Problem(a.input(), b.input(), 0.0, 1.0, tol).solve(false);
+        Query query(a.input(), b.input(), 0.0, 1.0, tol);
+        const Hit h = query.solve(false);
         ++solves;
-        if (h.hit) return lo + h.t * (hi - lo);
+        if (h.contact()) {
+            outcome = h.outcome;
+            return lo + h.t * (hi - lo);
+        }
     }
     return kNaN;
 }
 
 Hit path_contact(const double *box_a, const double *box_b, double lo, double hi, const Tolerances &tol) {
-    if (!finite_row(box_a) || !finite_row(box_b)) return Hit{};
-    if (hi - lo < 1e-12) lo = std::max(0.0, hi - 1e-12);
-    const FittedBox a(box_a, lo, hi, 1e-12), b(box_b, lo, hi, 1e-12);
-    Hit h = Problem(a.input(), b.input(), 0.0, 1.0, tol).solve(true);
-    h.t = lo + h.t * (hi - lo);
+    if (!finite_row(box_a) || !finite_row(box_b)) {
+        Hit h;
+        h.outcome = Outcome::NonFinite;
+        return h;
+    }
+    if (hi - lo < kMinWindow) lo = std::max(0.0, hi - kMinWindow);
+    const FittedBox a(box_a, lo, hi, kMinWindow), b(box_b, lo, hi, kMinWindow);
+    Query query(a.input(), b.input(), 0.0, 1.0, tol);
+    Hit h = query.solve(true);
+    if (h.contact()) h.t = lo + h.t * (hi - lo);
     return h;
 }
 

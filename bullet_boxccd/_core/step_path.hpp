@@ -71,13 +71,15 @@ int fit_pieces(const double *box, double fit_tolerance);
 
 // The first touch of two boxes on their fitted motions, each piece's box
 // inflated by the fit's error bound so that the answer is never late: the step
-// fraction, NaN if they stay apart (or a row is not finite). `solves` counts
-// the solver calls (one per piece tried).
+// fraction, NaN if they stay apart or a row is not finite; `outcome` says which
+// (Separated, NonFinite, or the solver's outcome of the touching piece).
+// `solves` counts the solver calls (one per piece tried).
 double first_touch(const double *box_a, const double *box_b, double fit_tolerance, const Tolerances &tol,
-                   long &solves);
+                   long &solves, Outcome &outcome);
 
 // The first touch of two boxes known to touch within [lo, hi], with its
 // geometry (one fit over the window, inflated likewise); t is a step fraction.
+// Its outcome says what happened (NonFinite for a row that is not finite).
 Hit path_contact(const double *box_a, const double *box_b, double lo, double hi, const Tolerances &tol);
 
 // Pairs of the n boxes whose swept bounds meet, for the broad phase: bounds is

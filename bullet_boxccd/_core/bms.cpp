@@ -1,0 +1,291 @@
+// The pair's Minkowski difference: setup in the pair's frame, the 15 axes at a
+// time, the cofactor polynomials, the regularity check. See bms.hpp.
+#include "bms.hpp"
+
+#include <cstdio>
+
+namespace boxccd {
+
+namespace {
+
+// Coefficient (k, r, c) of a row-major (3, 4, 4) array.
+inline double coef(const double *C, int k, int r, int c) { return C[k * 16 + r * 4 + c]; }
+
+// Double-double arithmetic (error-free transforms, no FMA needed): the centres'
+// constant terms are summed exactly, so that the shared translation taken off
+// both boxes loses nothing the input had.
+struct DD {
+    double hi = 0.0, lo = 0.0;
+};
+inline void two_sum(double a, double b, double &s, double &e) {
+    s = a + b;
+    const double bb = s - a;
+    e = (a - (s - bb)) + (b - bb);
+}
+inline void split(double a, double &hi, double &lo) {  // Dekker: a = hi + lo, 26 bits each
+    const double c = 134217729.0 * a;
+    hi = c - (c - a);
+    lo = a - hi;
+}
+inline void two_prod(double a, double b, double &p, double &e) {
+    p = a * b;
+    double ah, al, bh, bl;
+    split(a, ah, al);
+    split(b, bh, bl);
+    e = ((ah * bh - p) + ah * bl + al * bh) + al * bl;
+}
+inline void add(DD &x, double v) {
+    double s, e;
+    two_sum(x.hi, v, s, e);
+    x.hi = s;
+    x.lo += e;
+}
+inline void add_prod(DD &x, double a, double b) {
+    double p, e;
+    two_prod(a, b, p, e);
+    add(x, p);
+    x.lo += e;
+}
+inline double round_dd(const DD &x) { return x.hi + x.lo; }
+
+// Entry (r, c) of M(t0 + w s) as a quadratic in s: its three coefficients.
+void entry_in_s(const double *C, int r, int c, double t0, double w, double out[3]) {
+    const double c0 = coef(C, 0, r, c), c1 = coef(C, 1, r, c), c2 = coef(C, 2, r, c);
+    out[0] = c0 + t0 * (c1 + t0 * c2);
+    out[1] = (c1 + 2.0 * c2 * t0) * w;
+    out[2] = c2 * w * w;
+}
+
+// The exact constant term (s = 0, t = t0) of entry (r, c) times k, added to x.
+void add_entry_at_t0(DD &x, const double *C, int r, int c, double t0, double k) {
+    const double c0 = coef(C, 0, r, c), c1 = coef(C, 1, r, c), c2 = coef(C, 2, r, c);
+    if (k == 1.0) add(x, c0); else add_prod(x, k, c0);
+    if (t0 == 0.0) return;
+    double t0c1, e1;
+    two_prod(t0, c1, t0c1, e1);  // t0 c1 exactly
+    add_prod(x, k, t0c1);
+    add_prod(x, k, e1);
+    double tt, ett;
+    two_prod(t0, t0, tt, ett);  // t0^2 exactly
+    double p, e;
+    two_prod(tt, c2, p, e);
+    add_prod(x, k, p);
+    add_prod(x, k, e + ett * c2);
+}
+
+}  // namespace
+
+Pair::Pair(const BoxInput &a, const BoxInput &b, double t0_, double t1_, const Tolerances &tol_)
+    : t0(t0_), t1(t1_), tol(tol_) {
+    const double w = t1 - t0;
+    const BoxInput *box[2] = {&a, &b};
+    DD centre0[2][3];   // centres at s = 0, exactly
+    Curve centre[2];    // centres, higher coefficients (the constant term set below)
+    double summands = 0.0;  // magnitude of the summands of the higher coefficients
+    for (int q = 0; q < 2; ++q) {
+        const BoxInput &bx = *box[q];
+        double m[3];  // the box's centre in its own frame
+        for (int i = 0; i < 3; ++i) {
+            m[i] = 0.5 * (bx.lo[i] + bx.hi[i]);
+            h[3 * q + i] = 0.5 * (bx.hi[i] - bx.lo[i]);
+        }
+        for (int r = 0; r < 3; ++r) {
+            double e[3];
+            for (int i = 0; i < 3; ++i) {
+                entry_in_s(bx.coeffs, r, i, t0, w, e);
+                for (int k = 0; k < 3; ++k) g[3 * q + i].c[k][r] = e[k];
+            }
+            entry_in_s(bx.coeffs, r, 3, t0, w, e);
+            double c1 = e[1], c2 = e[2];
+            summands += std::fabs(e[1]) + std::fabs(e[2]);
+            add_entry_at_t0(centre0[q][r], bx.coeffs, r, 3, t0, 1.0);
+            for (int i = 0; i < 3; ++i) {
+                if (m[i] == 0.0) continue;
+                add_entry_at_t0(centre0[q][r], bx.coeffs, r, i, t0, m[i]);
+                const Curve &gi = g[3 * q + i];
+                c1 += m[i] * gi.c[1][r];
+                c2 += m[i] * gi.c[2][r];
+                summands += std::fabs(m[i]) * (std::fabs(gi.c[1][r]) + std::fabs(gi.c[2][r]));
+            }
+            centre[q].c[1][r] = c1;
+            centre[q].c[2][r] = c2;
+        }
+    }
+    // The pair's frame: A's centre at s = 0, rounded. A's constant term there is
+    // the rounding residue; B's is rounded once, relative to its local value.
+    for (int r = 0; r < 3; ++r) {
+        origin[r] = centre0[0][r].hi;
+        centre[0].c[0][r] = centre0[0][r].lo;
+        DD local;
+        two_sum(centre0[1][r].hi, -origin[r], local.hi, local.lo);
+        local.lo += centre0[1][r].lo;
+        centre[1].c[0][r] = round_dd(local);
+    }
+    cA = centre[0];
+    cB = centre[1];
+    for (int k = 0; k < 3; ++k)
+        for (int r = 0; r < 3; ++r) d.c[k][r] = cB.c[k][r] - cA.c[k][r];
+    dmag = summands + sum_abs3(cA.c[0]) + sum_abs3(cB.c[0]);
+    size = hmag = 0.0;
+    turning = false;
+    for (int k = 0; k < 6; ++k) {
+        gmag[k] = g[k].magnitude();
+        hmag += h[k] * gmag[k];
+        size += h[k] * norm3(g[k].at(0.5));
+        gdeg[k] = g[k].constant() ? 0 : 2;
+        turning = turning || gdeg[k];
+    }
+    ddeg = d.constant() ? 0 : 2;
+    // Inputs near the top of the double range overflow in these products; say
+    // so instead of returning nonsense.
+    const bool ok = std::isfinite(dmag * hmag) && std::isfinite(size) && std::isfinite(dmag + hmag) &&
+                    std::isfinite(sum_abs3(origin)) &&
+                    std::isfinite((dmag + hmag) * gmag[0] * gmag[3] * gmag[1] * gmag[4]);
+    if (!ok)
+        throw NonFiniteError(
+            "the boxes' extents, positions or motion coefficients are too large: intermediate products "
+            "overflow double precision");
+}
+
+void triple_products(const Vec3 *gs, double *pv) {
+    Vec3 face[6];
+    for (int f = 0; f < 6; ++f) face[f] = cross3(gs[axis_generator(f, 0)], gs[axis_generator(f, 1)]);
+    for (int q = 0; q < 2; ++q) {
+        for (int i = 0; i < 3; ++i)
+            for (int l = 0; l < 3; ++l) pv[9 * q + 3 * i + l] = dot3(face[3 * q + i], gs[3 * (1 - q) + l]);
+        pv[kDet + q] = dot3(face[3 * q], gs[3 * q]);
+    }
+}
+
+// The supports come straight from the triple products (the Projection table,
+// written out): a face axis of A sees det A on its own generator and S[0][i][.]
+// on B's; an edge-edge axis (i, j) sees S[0][m][j] on A's other two generators
+// and S[1][m][i] on B's (m the third index).
+void axes_at(const Pair &pair, const Vec3 *gs, const Vec3 &d, AxesAt &v) {
+    double len2[6];
+    for (int g = 0; g < 6; ++g) len2[g] = dot3(gs[g], gs[g]);
+    constexpr double kParallel2 = kParallel * kParallel;
+    for (int ax = 0; ax < 15; ++ax) {
+        const int g1 = axis_generator(ax, 0), g2 = axis_generator(ax, 1);
+        v.n[ax] = cross3(gs[g1], gs[g2]);
+        v.nn2[ax] = dot3(v.n[ax], v.n[ax]);
+        v.nd[ax] = dot3(v.n[ax], d);
+        v.direction[ax] = v.nn2[ax] > kParallel2 * len2[g1] * len2[g2];
+    }
+    double *pv = v.pv;
+    for (int q = 0; q < 2; ++q) {
+        for (int i = 0; i < 3; ++i)
+            for (int l = 0; l < 3; ++l) pv[9 * q + 3 * i + l] = dot3(v.n[3 * q + i], gs[3 * (1 - q) + l]);
+        pv[kDet + q] = dot3(v.n[3 * q], gs[3 * q]);
+    }
+    const double *h = pair.h;
+    double S0[9], S1[9];  // |S[0][i][l]| h_b[l] and |S[1][j][k]| h_a[k]
+    for (int i = 0; i < 3; ++i)
+        for (int l = 0; l < 3; ++l) {
+            S0[3 * i + l] = std::fabs(pv[3 * i + l]) * h[3 + l];
+            S1[3 * i + l] = std::fabs(pv[9 + 3 * i + l]) * h[l];
+        }
+    const double detA = std::fabs(pv[kDet]), detB = std::fabs(pv[kDet + 1]);
+    for (int i = 0; i < 3; ++i) {
+        v.support[i] = h[i] * detA + S0[3 * i] + S0[3 * i + 1] + S0[3 * i + 2];
+        v.support[3 + i] = h[3 + i] * detB + S1[3 * i] + S1[3 * i + 1] + S1[3 * i + 2];
+    }
+    for (int i = 0; i < 3; ++i) {
+        const int i1 = (i + 1) % 3, i2 = (i + 2) % 3;
+        for (int j = 0; j < 3; ++j) {
+            const int j1 = (j + 1) % 3, j2 = (j + 2) % 3;
+            // h_a[k] |S[0][m][j]| for k != i (m = 3 - k - i), h_b[l] |S[1][m][i]| for l != j.
+            const double a_side = h[i1] * std::fabs(pv[3 * i2 + j]) + h[i2] * std::fabs(pv[3 * i1 + j]);
+            const double b_side = h[3 + j1] * std::fabs(pv[9 + 3 * j2 + i]) + h[3 + j2] * std::fabs(pv[9 + 3 * j1 + i]);
+            v.support[6 + 3 * i + j] = a_side + b_side;
+        }
+    }
+}
+
+Cofactors::Cofactors(const Pair &pair) : pair_(pair) {}
+
+const PVec &Cofactors::normal(int ax) {
+    if (!(n_built_ & (1u << ax))) {
+        const int ga = axis_generator(ax, 0), gb = axis_generator(ax, 1);
+        n_[ax] = cross_curves(pair_.g[ga], pair_.gdeg[ga], pair_.g[gb], pair_.gdeg[gb]);
+        n_built_ |= 1u << ax;
+    }
+    return n_[ax];
+}
+
+const Poly &Cofactors::projection(int k) {
+    if (!(proj_built_ & (1u << k))) {
+        // k < 18: S[q][i][l] = n_{3q+i} . g_{3(1-q)+l}; k = kDet + q: n_{3q} . g_{3q}.
+        const int q = k < kSwitches ? k / 9 : k - kDet;
+        const int axis = k < kSwitches ? 3 * q + (k % 9) / 3 : 3 * q;
+        const int gen = k < kSwitches ? 3 * (1 - q) + k % 3 : 3 * q;
+        proj_[k] = dot_curve(normal(axis), pair_.normal_degree(axis), pair_.g[gen], pair_.gdeg[gen]);
+        trim(proj_[k]);  // constant when the boxes do not turn
+        proj_built_ |= 1u << k;
+    }
+    return proj_[k];
+}
+
+const Poly &Cofactors::normal_dot_d(int ax) {
+    if (!(nd_built_ & (1u << ax))) {
+        nd_[ax] = dot_curve(normal(ax), pair_.normal_degree(ax), pair_.d, pair_.ddeg);
+        trim(nd_[ax]);
+        nd_built_ |= 1u << ax;
+    }
+    return nd_[ax];
+}
+
+const Poly &Cofactors::product(int ax, int g) {
+    // A face axis' products are switch functions (or the determinant); an
+    // edge-edge axis' are computed from its own normal (one dot product instead
+    // of a face normal and a dot product).
+    if (ax < 6) return projection(kProjection.p[ax][g].index);
+    if (!(prod_built_[ax] & (1u << g))) {
+        prod_[ax][g] = dot_curve(normal(ax), pair_.normal_degree(ax), pair_.g[g], pair_.gdeg[g]);
+        trim(prod_[ax][g]);
+        prod_built_[ax] |= static_cast<uint8_t>(1u << g);
+    }
+    return prod_[ax][g];
+}
+
+namespace {
+std::string num(double v) {
+    char buf[40];
+    std::snprintf(buf, sizeof buf, "%.17g", v);
+    return buf;
+}
+bool finite_poly(const Poly &p) {
+    for (int i = 0; i <= p.deg; ++i)
+        if (!std::isfinite(p.c[i])) return false;
+    return true;
+}
+}  // namespace
+
+void check_regular(const Pair &pair, Cofactors &cof, const char *name_a, const char *name_b) {
+    const char *names[2] = {name_a, name_b};
+    for (int q = 0; q < 2; ++q) {
+        const Poly &det = cof.projection(kDet + q);
+        if (!finite_poly(det))
+            throw NonFiniteError(
+                "the boxes' extents, positions or motion coefficients are too large: intermediate products "
+                "overflow double precision");
+        const double noise = pair.tol.rounding * kEps * pair.gmag[3 * q] * pair.gmag[3 * q + 1] * pair.gmag[3 * q + 2];
+        const double v0 = det(0.0);
+        double s = std::fabs(v0) <= noise ? 0.0 : kNoRoot;
+        if (std::isnan(s)) {
+            Poly shifted = (v0 > 0.0 ? 1.0 : -1.0) * det;
+            shifted.c[0] -= noise;
+            bool clustered = false;  // a cluster of roots is a collapse all the same
+            s = first_nonpositive(shifted, 0.0, 1.0, clustered);
+        }
+        if (!std::isnan(s)) {
+            const double t = pair.time(s);
+            throw SingularMotionError(std::string(names[q]) + ": the 3x3 part of the motion is singular at t = " +
+                                          num(t) + " (det = " + num(det(s)) + "), so box " + (q ? "b" : "a") +
+                                          " collapses inside t_range",
+                                      t);
+        }
+    }
+}
+
+}  // namespace boxccd

@@ -1,0 +1,147 @@
+// Conservative advancement on fixed separating axes. See culling.hpp.
+#include "culling.hpp"
+
+#include <algorithm>
+
+namespace boxccd {
+
+Sample sample_at(const Pair &pair, double s) {
+    Sample a;
+    a.s = s;
+    for (int g = 0; g < 6; ++g) {
+        a.g[g] = pair.g[g].at(s);
+        a.dg[g] = pair.g[g].derivative(s);
+    }
+    a.d = pair.d.at(s);
+    a.dd = pair.d.derivative(s);
+    return a;
+}
+
+SeparatingAxis most_separating(const Pair &pair, const Sample &at) {
+    AxesAt v;
+    axes_at(pair, at.g, at.d, v);
+    SeparatingAxis best;
+    double best_gap2 = 0.0;  // (gap / |n|)^2 of the best: ranks the axes without a sqrt
+    const double margin = pair.unit_margin();
+    for (int ax = 0; ax < 15; ++ax) {
+        const double gap = std::fabs(v.nd[ax]) - v.support[ax];
+        if (!(gap > 0.0 && v.direction[ax])) continue;
+        const double gap2 = gap * gap / v.nn2[ax];
+        if (gap2 > best_gap2 && gap2 > margin * margin) {
+            best_gap2 = gap2;
+            best.axis = ax;
+            best.facet = 2 * ax + (v.nd[ax] < 0.0);
+            best.n = v.n[ax];
+        }
+    }
+    if (best.axis >= 0) {
+        best.len = std::sqrt(v.nn2[best.axis]);
+        best.gap = std::sqrt(best_gap2);
+    }
+    return best;
+}
+
+namespace {
+
+// The first root in (lo, hi] of q(x) = A + B x + C x^2, given q(lo) > 0; NaN if
+// q > 0 on all of it. Closed form (the stable one); the caller shrinks it by a
+// few eps, which the margin covers.
+double first_root(double A, double B, double C, double lo, double hi) {
+    const auto q = [&](double x) { return A + x * (B + x * C); };
+    if (q(hi) > 0.0) {
+        // Still positive at hi: a root inside needs a convex dip below zero.
+        if (!(C > 0.0)) return kNoRoot;
+        const double v = -B / (2.0 * C);
+        if (!(v > lo && v < hi) || q(v) > 0.0) return kNoRoot;
+        hi = v;
+    }
+    // Exactly one crossing in (lo, hi].
+    if (C == 0.0) return B < 0.0 ? std::clamp(-A / B, lo, hi) : hi;
+    const double disc = B * B - 4.0 * A * C;
+    if (!(disc >= 0.0)) return lo;  // rounding: the crossing is a double root; stay early
+    const double sq = std::sqrt(disc);
+    const double qq = -0.5 * (B + (B >= 0.0 ? sq : -sq));
+    double r1 = qq / C, r2 = qq != 0.0 ? A / qq : r1;
+    if (r1 > r2) std::swap(r1, r2);
+    const double r = r1 > lo ? r1 : r2;
+    return std::clamp(r, lo, hi);
+}
+
+}  // namespace
+
+// The bound: along fixed n, with sigma the sign of n.d at s and tau = s' - s,
+//   n.d(s + tau) = a_d + b_d tau + c_d tau^2       (exact: d is quadratic)
+//   |n.g(s + tau)| <= |a + b tau| + |c| tau^2      (each generator)
+// so gap >= sigma (a_d + b_d tau + c_d tau^2) - sum_g h_g (|a + b tau| + |c| tau^2),
+// a piecewise quadratic whose kinks are where a + b tau changes sign. It matches
+// the gap's value and slope at tau = 0, which makes the advancement converge
+// geometrically; it is exact for boxes that do not turn.
+double apart_until(const Pair &pair, const Sample &at, const SeparatingAxis &axis, double hi) {
+    const Vec3 &n = axis.n;
+    const double nd = dot3(n, at.d);
+    const double sigma = nd >= 0.0 ? 1.0 : -1.0;
+    double A = sigma * nd - axis.len * pair.unit_margin();
+    double B = sigma * dot3(n, at.dd), C = sigma * dot3(n, pair.d.c[2]);
+    struct Kink {
+        double tau, a2, b2;  // where, and the change of A and B there
+    } kinks[6];
+    int nk = 0;
+    const double span = hi - at.s;
+    for (int g = 0; g < 6; ++g) {
+        const double a = dot3(n, at.g[g]), b = dot3(n, at.dg[g]), c = dot3(n, pair.g[g].c[2]);
+        const double sg = a > 0.0 || (a == 0.0 && b >= 0.0) ? 1.0 : -1.0;  // the sign of a + b tau just after 0
+        A -= pair.h[g] * sg * a;
+        B -= pair.h[g] * sg * b;
+        C -= pair.h[g] * std::fabs(c);
+        if (sg * b < 0.0) {  // |a + b tau| turns back up at tau = -a / b
+            const Kink kink = {-a / b, 2.0 * pair.h[g] * sg * a, 2.0 * pair.h[g] * sg * b};
+            if (!(kink.tau < span)) continue;
+            int at_k = nk++;  // insertion sort: at most six kinks
+            for (; at_k > 0 && kinks[at_k - 1].tau > kink.tau; --at_k) kinks[at_k] = kinks[at_k - 1];
+            kinks[at_k] = kink;
+        }
+    }
+    double lo = 0.0;
+    for (int k = 0; k <= nk; ++k) {
+        const double end = k < nk ? kinks[k].tau : span;
+        if (end > lo) {
+            const double r = first_root(A, B, C, lo, end);
+            if (!std::isnan(r)) return at.s + r * (1.0 - 8.0 * kEps);
+        }
+        if (k < nk) {
+            A += kinks[k].a2;
+            B += kinks[k].b2;
+            lo = std::max(lo, end);
+        }
+    }
+    return hi;
+}
+
+Culling advance_on_axes(const Pair &pair, double from, double min_window) {
+    Culling out;
+    const auto window = [&](double start, double step) {
+        out.start = start;
+        out.end = std::min(1.0, start + std::max(kWindow * step, min_window));
+        return out;
+    };
+    double s = from, step = 1.0 - from;  // the last step (the whole rest before the first)
+    for (int k = 0;; ++k) {
+        const Sample at = sample_at(pair, s);
+        const SeparatingAxis axis = most_separating(pair, at);
+        if (axis.axis < 0) return window(s, step);  // touching or overlapping at s: the contact is at s
+        const double r = apart_until(pair, at, axis, 1.0);
+        if (r >= 1.0) {
+            out.apart = true;
+            return out;
+        }
+        out.facet = axis.facet;
+        // Near the contact (or no longer advancing): the BMS search takes over
+        // from r, where the same facet is still the one most likely to separate.
+        if (!(r > s)) return window(r, 1.0);
+        if (axis.gap <= kHandover * pair.size || k + 1 == kMaxCullSteps) return window(r, r - s);
+        step = r - s;
+        s = r;
+    }
+}
+
+}  // namespace boxccd
