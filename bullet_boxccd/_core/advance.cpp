@@ -13,6 +13,7 @@ void fixed_axes(const Pair &pair, FixedAxes &f) {
     for (int g = 0; g < 6; ++g) gs[g] = pair.g[g].c[0];
     axes_at(pair, gs, pair.d.c[0], f.at);
     for (int ax = 0; ax < 15; ++ax) {
+        f.n[ax] = axis_normal(gs, ax);
         const double len = std::sqrt(f.at.nn2[ax]);
         f.len[ax] = f.at.direction[ax] ? len : 0.0;
         f.tau[ax] = pair.tau(ax, len);
@@ -23,7 +24,7 @@ void facet_values(const Pair &pair, double s, FacetValues &f, const FixedAxes *f
     const Vec3 d = pair.d.at(s);
     if (fixed) {
         for (int ax = 0; ax < 15; ++ax) {
-            const double nd = dot3(fixed->at.n[ax], d), base = fixed->at.support[ax] + fixed->tau[ax];
+            const double nd = dot3(fixed->n[ax], d), base = fixed->at.support[ax] + fixed->tau[ax];
             f.len[ax] = fixed->len[ax];
             f.tau[ax] = fixed->tau[ax];
             f.q[2 * ax] = nd - base;
@@ -46,14 +47,36 @@ void facet_values(const Pair &pair, double s, FacetValues &f, const FixedAxes *f
 
 namespace {
 
+// Boxes that do not turn: one piece over the whole range, +-n.d(s) - support -
+// tau with the constant axis (a quadratic).
+void fixed_piece(const Pair &pair, const FixedAxes &fixed, int k, FacetPiece &piece) {
+    const int ax = k / 2;
+    const Vec3 &n = fixed.n[ax];
+    const double sgn = k % 2 == 0 ? 1.0 : -1.0;
+    Poly &Q = piece.Q;
+    Q.deg = 2;
+    for (int c = 0; c < 3; ++c) Q.c[c] = sgn * dot3(n, pair.d.c[c]);
+    Q.c[0] -= fixed.at.support[ax] + fixed.tau[ax];
+    trim(Q);
+    Vec3 gs[6];
+    for (int g = 0; g < 6; ++g) gs[g] = pair.g[g].c[0];
+    axis_signs(ax, gs, piece.sig);
+    piece.lo = 0.0;
+    piece.hi = 1.0;
+}
+
 // Facet k's piece at s: the cached one if it covers s, else built up to the next
 // switch of its axis (searched from a few root widths on: a switch at s itself
 // was passed already) or `end`.
 FacetPiece &piece_at(const Pair &pair, Cofactors &cof, SearchState &st, int k, double s, double end) {
     FacetPiece &piece = st.pieces[k];
     if ((st.built & (1u << k)) && piece.covers(s)) return piece;
-    const double hi = std::min(end, axis_switch(pair, cof, k / 2, s + kSwitchRepeat * kRootWidth, end));
-    build_piece(pair, cof, k, s, std::max(s, hi), piece);
+    if (st.fixed) {
+        fixed_piece(pair, *st.fixed, k, piece);
+    } else {
+        const double hi = std::min(end, axis_switch(pair, cof, k / 2, s + kSwitchRepeat * kRootWidth, end));
+        build_piece(pair, cof, k, s, std::max(s, hi), piece);
+    }
     st.built |= 1u << k;
     return piece;
 }
@@ -152,9 +175,7 @@ int contact_facet(const Pair &pair, const SearchState &st, double s, int8_t *sig
     }
     Vec3 gs[6];
     for (int g = 0; g < 6; ++g) gs[g] = pair.g[g].at(s);
-    double pv[20];
-    triple_products(gs, pv);
-    axis_signs(best / 2, pv, sig);
+    axis_signs(best / 2, gs, sig);
     return best;
 }
 

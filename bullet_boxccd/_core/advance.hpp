@@ -21,6 +21,7 @@ struct FacetValues {
 };
 struct FixedAxes {
     AxesAt at;
+    Vec3 n[15];
     double len[15], tau[15];
 };
 void fixed_axes(const Pair &pair, FixedAxes &f);

@@ -144,14 +144,16 @@ nb::object checked(PyObject *o) {
     return nb::steal(o);
 }
 
-// An instance of tuple subclass `type` holding `items`: tuple.__new__(type, items),
-// what NamedTuple._make does, without running any Python code.
+// An instance of tuple subclass `type` holding `items`: what NamedTuple._make and
+// tuple.__new__(type, items) make, allocated directly (one allocation, no Python
+// code). A NamedTuple has the tuple's layout (__slots__ = ()), so tp_alloc gives
+// a tuple of that type with its items to fill.
 nb::object new_named(const nb::object &type, std::initializer_list<nb::handle> items) {
-    nb::object t = checked(PyTuple_New((Py_ssize_t)items.size()));
+    PyTypeObject *tp = (PyTypeObject *)type.ptr();
+    nb::object t = checked(tp->tp_alloc(tp, (Py_ssize_t)items.size()));
     Py_ssize_t i = 0;
     for (nb::handle x : items) PyTuple_SET_ITEM(t.ptr(), i++, x.inc_ref().ptr());
-    nb::object args = checked(PyTuple_Pack(1, t.ptr()));
-    return checked(PyTuple_Type.tp_new((PyTypeObject *)type.ptr(), args.ptr(), nullptr));
+    return t;
 }
 
 nb::object new_vec3(const std::array<double, 3> &v) {

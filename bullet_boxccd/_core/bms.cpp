@@ -2,6 +2,7 @@
 // time, the cofactor polynomials, the regularity check. See bms.hpp.
 #include "bms.hpp"
 
+#include <algorithm>
 #include <cstdio>
 
 namespace boxccd {
@@ -78,6 +79,7 @@ void add_entry_at_t0(DD &x, const double *C, int r, int c, double t0, double k) 
 Pair::Pair(const BoxInput &a, const BoxInput &b, double t0_, double t1_, const Tolerances &tol_)
     : t0(t0_), t1(t1_), tol(tol_) {
     const double w = t1 - t0;
+    const bool plain = t0 == 0.0 && w == 1.0;
     const BoxInput *box[2] = {&a, &b};
     DD centre0[2][3];   // centres at s = 0, exactly
     Curve centre[2];    // centres, higher coefficients (the constant term set below)
@@ -92,6 +94,10 @@ Pair::Pair(const BoxInput &a, const BoxInput &b, double t0_, double t1_, const T
         for (int r = 0; r < 3; ++r) {
             double e[3];
             for (int i = 0; i < 3; ++i) {
+                if (plain) {  // t_range (0, 1): the coefficients as given
+                    for (int k = 0; k < 3; ++k) g[3 * q + i].c[k][r] = coef(bx.coeffs, k, r, i);
+                    continue;
+                }
                 entry_in_s(bx.coeffs, r, i, t0, w, e);
                 for (int k = 0; k < 3; ++k) g[3 * q + i].c[k][r] = e[k];
             }
@@ -130,12 +136,20 @@ Pair::Pair(const BoxInput &a, const BoxInput &b, double t0_, double t1_, const T
     turning = false;
     for (int k = 0; k < 6; ++k) {
         gmag[k] = g[k].magnitude();
+        gdeg[k] = g[k].constant() ? 0 : 2;
+        const Vec3 &c1 = g[k].c[1], &c2 = g[k].c[2];
+        gbounds[k] = {0.0, 0.0};
+        if (gdeg[k])
+            gbounds[k] = {std::max(norm3(c1), norm3({c1[0] + 2.0 * c2[0], c1[1] + 2.0 * c2[1], c1[2] + 2.0 * c2[2]})),
+                          2.0 * norm3(c2)};
         hmag += h[k] * gmag[k];
         size += h[k] * norm3(g[k].at(0.5));
-        gdeg[k] = g[k].constant() ? 0 : 2;
         turning = turning || gdeg[k];
     }
     ddeg = d.constant() ? 0 : 2;
+    const double rounding = tol.rounding * kEps * (dmag + hmag);
+    for (int ax = 0; ax < 15; ++ax) noise[ax] = rounding * gmag[axis_generator(ax, 0)] * gmag[axis_generator(ax, 1)];
+    unit_margin = tol.gap_rel * size + rounding;
     // Inputs near the top of the double range overflow in these products; say
     // so instead of returning nonsense.
     const bool ok = std::isfinite(dmag * hmag) && std::isfinite(size) && std::isfinite(dmag + hmag) &&
@@ -147,57 +161,43 @@ Pair::Pair(const BoxInput &a, const BoxInput &b, double t0_, double t1_, const T
             "overflow double precision");
 }
 
-void triple_products(const Vec3 *gs, double *pv) {
-    Vec3 face[6];
-    for (int f = 0; f < 6; ++f) face[f] = cross3(gs[axis_generator(f, 0)], gs[axis_generator(f, 1)]);
-    for (int q = 0; q < 2; ++q) {
-        for (int i = 0; i < 3; ++i)
-            for (int l = 0; l < 3; ++l) pv[9 * q + 3 * i + l] = dot3(face[3 * q + i], gs[3 * (1 - q) + l]);
-        pv[kDet + q] = dot3(face[3 * q], gs[3 * q]);
-    }
-}
-
-// The supports come straight from the triple products (the Projection table,
-// written out): a face axis of A sees det A on its own generator and S[0][i][.]
-// on B's; an edge-edge axis (i, j) sees S[0][m][j] on A's other two generators
-// and S[1][m][i] on B's (m the third index).
+// The supports come straight from the triple products S (the Projection
+// table, written out): a face axis of A sees det A on its own generator and
+// S[0][i][.] on B's; an edge-edge axis (i, j) sees S[0][m][j] on A's other two
+// generators and S[1][m][i] on B's (m the third index). Written for the
+// compiler: the normals stay in registers, nothing is stored but the results.
 void axes_at(const Pair &pair, const Vec3 *gs, const Vec3 &d, AxesAt &v) {
+    const double *h = pair.h;
+    constexpr double kParallel2 = kParallel * kParallel;
     double len2[6];
     for (int g = 0; g < 6; ++g) len2[g] = dot3(gs[g], gs[g]);
-    constexpr double kParallel2 = kParallel * kParallel;
-    for (int ax = 0; ax < 15; ++ax) {
-        const int g1 = axis_generator(ax, 0), g2 = axis_generator(ax, 1);
-        v.n[ax] = cross3(gs[g1], gs[g2]);
-        v.nn2[ax] = dot3(v.n[ax], v.n[ax]);
-        v.nd[ax] = dot3(v.n[ax], d);
-        v.direction[ax] = v.nn2[ax] > kParallel2 * len2[g1] * len2[g2];
-    }
-    double *pv = v.pv;
+    double S[2][3][3], det[2];  // |S[q][i][l]| and |det|
     for (int q = 0; q < 2; ++q) {
-        for (int i = 0; i < 3; ++i)
-            for (int l = 0; l < 3; ++l) pv[9 * q + 3 * i + l] = dot3(v.n[3 * q + i], gs[3 * (1 - q) + l]);
-        pv[kDet + q] = dot3(v.n[3 * q], gs[3 * q]);
-    }
-    const double *h = pair.h;
-    double S0[9], S1[9];  // |S[0][i][l]| h_b[l] and |S[1][j][k]| h_a[k]
-    for (int i = 0; i < 3; ++i)
-        for (int l = 0; l < 3; ++l) {
-            S0[3 * i + l] = std::fabs(pv[3 * i + l]) * h[3 + l];
-            S1[3 * i + l] = std::fabs(pv[9 + 3 * i + l]) * h[l];
+        const Vec3 *own = gs + 3 * q, *other = gs + 3 * (1 - q);
+        for (int i = 0; i < 3; ++i) {
+            const Vec3 n = cross3(own[(i + 1) % 3], own[(i + 2) % 3]);
+            const int ax = 3 * q + i;
+            v.nn2[ax] = dot3(n, n);
+            v.nd[ax] = dot3(n, d);
+            v.direction[ax] = v.nn2[ax] > kParallel2 * len2[3 * q + (i + 1) % 3] * len2[3 * q + (i + 2) % 3];
+            for (int l = 0; l < 3; ++l) S[q][i][l] = std::fabs(dot3(n, other[l]));
+            if (i == 0) det[q] = std::fabs(dot3(n, own[0]));
         }
-    const double detA = std::fabs(pv[kDet]), detB = std::fabs(pv[kDet + 1]);
-    for (int i = 0; i < 3; ++i) {
-        v.support[i] = h[i] * detA + S0[3 * i] + S0[3 * i + 1] + S0[3 * i + 2];
-        v.support[3 + i] = h[3 + i] * detB + S1[3 * i] + S1[3 * i + 1] + S1[3 * i + 2];
+        for (int i = 0; i < 3; ++i) {
+            const double *ho = h + 3 * (1 - q);
+            v.support[3 * q + i] = h[3 * q + i] * det[q] + ho[0] * S[q][i][0] + ho[1] * S[q][i][1] + ho[2] * S[q][i][2];
+        }
     }
     for (int i = 0; i < 3; ++i) {
         const int i1 = (i + 1) % 3, i2 = (i + 2) % 3;
         for (int j = 0; j < 3; ++j) {
-            const int j1 = (j + 1) % 3, j2 = (j + 2) % 3;
+            const int j1 = (j + 1) % 3, j2 = (j + 2) % 3, ax = 6 + 3 * i + j;
+            const Vec3 n = cross3(gs[i], gs[3 + j]);
+            v.nn2[ax] = dot3(n, n);
+            v.nd[ax] = dot3(n, d);
+            v.direction[ax] = v.nn2[ax] > kParallel2 * len2[i] * len2[3 + j];
             // h_a[k] |S[0][m][j]| for k != i (m = 3 - k - i), h_b[l] |S[1][m][i]| for l != j.
-            const double a_side = h[i1] * std::fabs(pv[3 * i2 + j]) + h[i2] * std::fabs(pv[3 * i1 + j]);
-            const double b_side = h[3 + j1] * std::fabs(pv[9 + 3 * j2 + i]) + h[3 + j2] * std::fabs(pv[9 + 3 * j1 + i]);
-            v.support[6 + 3 * i + j] = a_side + b_side;
+            v.support[ax] = h[i1] * S[0][i2][j] + h[i2] * S[0][i1][j] + h[3 + j1] * S[1][j2][i] + h[3 + j2] * S[1][j1][i];
         }
     }
 }
@@ -226,28 +226,6 @@ const Poly &Cofactors::projection(int k) {
     return proj_[k];
 }
 
-const Poly &Cofactors::normal_dot_d(int ax) {
-    if (!(nd_built_ & (1u << ax))) {
-        nd_[ax] = dot_curve(normal(ax), pair_.normal_degree(ax), pair_.d, pair_.ddeg);
-        trim(nd_[ax]);
-        nd_built_ |= 1u << ax;
-    }
-    return nd_[ax];
-}
-
-const Poly &Cofactors::product(int ax, int g) {
-    // A face axis' products are switch functions (or the determinant); an
-    // edge-edge axis' are computed from its own normal (one dot product instead
-    // of a face normal and a dot product).
-    if (ax < 6) return projection(kProjection.p[ax][g].index);
-    if (!(prod_built_[ax] & (1u << g))) {
-        prod_[ax][g] = dot_curve(normal(ax), pair_.normal_degree(ax), pair_.g[g], pair_.gdeg[g]);
-        trim(prod_[ax][g]);
-        prod_built_[ax] |= static_cast<uint8_t>(1u << g);
-    }
-    return prod_[ax][g];
-}
-
 namespace {
 std::string num(double v) {
     char buf[40];
@@ -261,10 +239,33 @@ bool finite_poly(const Poly &p) {
 }
 }  // namespace
 
-void check_regular(const Pair &pair, Cofactors &cof, const char *name_a, const char *name_b) {
+// det [g0 g1 g2] of three curves as a polynomial: (g1 x g2) . g0, coefficient by
+// coefficient (the cross product's five coefficient vectors, then the dot).
+// A box that does not turn has a constant determinant: one triple product.
+Poly det_poly(const Curve *g, bool turning) {
+    Poly p{};
+    p.deg = 0;
+    if (!turning) {
+        p.c[0] = dot3(cross3(g[1].c[0], g[2].c[0]), g[0].c[0]);
+        return p;
+    }
+    Vec3 n[5] = {};
+    for (int i = 0; i < 3; ++i)
+        for (int j = 0; j < 3; ++j) {
+            const Vec3 c = cross3(g[1].c[i], g[2].c[j]);
+            for (int r = 0; r < 3; ++r) n[i + j][r] += c[r];
+        }
+    p.deg = 6;
+    for (int k = 0; k < 5; ++k)
+        for (int l = 0; l < 3; ++l) p.c[k + l] += dot3(n[k], g[0].c[l]);
+    trim(p);
+    return p;
+}
+
+void check_regular(const Pair &pair, const char *name_a, const char *name_b) {
     const char *names[2] = {name_a, name_b};
     for (int q = 0; q < 2; ++q) {
-        const Poly &det = cof.projection(kDet + q);
+        const Poly det = det_poly(pair.g + 3 * q, pair.gdeg[3 * q] | pair.gdeg[3 * q + 1] | pair.gdeg[3 * q + 2]);
         if (!finite_poly(det))
             throw NonFiniteError(
                 "the boxes' extents, positions or motion coefficients are too large: intermediate products "

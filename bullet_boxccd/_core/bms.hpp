@@ -106,6 +106,12 @@ struct ProjectionTable {
 };
 inline constexpr ProjectionTable kProjection;
 
+// Bounds over [0, 1] of a generator's derivatives: |g'| (linear in s, so its
+// largest norm is at an end) and |g''| = 2 |c2|.
+struct GeneratorBounds {
+    double d1, d2;
+};
+
 // The pair, set up for one query: both boxes' generators and centres as curves
 // in s, in the pair's frame, and the magnitudes that bound their rounding.
 struct Pair {
@@ -118,38 +124,35 @@ struct Pair {
     Curve cA, cB, d;    // centres in the pair's frame, and d = cB - cA
     Vec3 origin;        // the pair's frame: world = origin + local
     double gmag[6];     // magnitude of each generator curve (bounds |g| on [0, 1])
+    GeneratorBounds gbounds[6];
     int gdeg[6], ddeg;  // degree classes: 0 (constant) or 2
     bool turning;       // some generator is not constant
     double dmag;        // bounds |d| and the rounding of the centres' construction
     double hmag;        // sum_g h_g gmag_g
     double size;        // world size used by gap_rel: sum_g h_g |g_g(1/2)|
 
-    int normal_degree(int axis) const { return gdeg[axis_generator(axis, 0)] + gdeg[axis_generator(axis, 1)]; }
-    // Rounding allowance of an axis' facets (unnormalised, like the facets).
-    double noise(int axis) const {
-        return tol.rounding * kEps * (dmag + hmag) * gmag[axis_generator(axis, 0)] * gmag[axis_generator(axis, 1)];
-    }
-    // Touching tolerance plus rounding allowance of an axis whose normal has length len.
-    double tau(int axis, double len) const { return tol.gap_rel * size * len + noise(axis); }
+    // Rounding allowance of each axis' facets (unnormalised, like the facets):
+    // rounding eps (dmag + hmag) |g_a| |g_b| for the axis' generators a, b.
+    double noise[15];
     // The same for a fixed unit direction (culling): gap_rel * size and the
     // rounding of a unit projection of the whole configuration.
-    double unit_margin() const { return tol.gap_rel * size + tol.rounding * kEps * (dmag + hmag); }
+    double unit_margin;
+
+    int normal_degree(int axis) const { return gdeg[axis_generator(axis, 0)] + gdeg[axis_generator(axis, 1)]; }
+    // Touching tolerance plus rounding allowance of an axis whose normal has length len.
+    double tau(int axis, double len) const { return tol.gap_rel * size * len + noise[axis]; }
     double time(double s) const { return s >= 1.0 ? t1 : t0 + s * (t1 - t0); }
 };
 
-// The 15 axes at one time, from the generators gs and d there: each axis' normal
-// n (unnormalised), |n|^2, n.d, the support sum_g h_g |n.g|, whether it has a
-// direction (kParallel), and the 20 triple products (indexed like Projection).
+// The 15 axes at one time, from the generators gs and d there: for each axis
+// (normal n = the cross product of its two generators, unnormalised) |n|^2, n.d,
+// the support sum_g h_g |n.g|, and whether it has a direction (kParallel).
 struct AxesAt {
-    Vec3 n[15];
     double nn2[15], nd[15], support[15];
     bool direction[15];
-    double pv[20];
 };
 void axes_at(const Pair &pair, const Vec3 *gs, const Vec3 &d, AxesAt &v);
-
-// The 20 triple products (indexed like Projection) from the generators alone.
-void triple_products(const Vec3 *gs, double *pv);
+inline Vec3 axis_normal(const Vec3 *gs, int axis) { return cross3(gs[axis_generator(axis, 0)], gs[axis_generator(axis, 1)]); }
 
 // The cofactor polynomials of one query, built on first use: most queries need
 // few of them (the culling and the facet values work from vectors; only
@@ -159,19 +162,15 @@ public:
     explicit Cofactors(const Pair &pair);
     const PVec &normal(int axis);        // n_axis(s)
     const Poly &projection(int k);       // S[q][i][l] or det (index as in Projection)
-    const Poly &normal_dot_d(int axis);  // n_axis . d
-    // n_axis . g_g for a generator that does not span the axis.
-    const Poly &product(int axis, int g);
 
 private:
     const Pair &pair_;
     PVec n_[15];
-    Poly proj_[20], nd_[15], prod_[15][6];
-    uint32_t n_built_ = 0, proj_built_ = 0, nd_built_ = 0;
-    uint8_t prod_built_[15] = {};
+    Poly proj_[20];
+    uint32_t n_built_ = 0, proj_built_ = 0;
 };
 
 // Raises SingularMotionError if A's or B's 3x3 part degenerates in range.
-void check_regular(const Pair &pair, Cofactors &cof, const char *name_a, const char *name_b);
+void check_regular(const Pair &pair, const char *name_a, const char *name_b);
 
 }  // namespace boxccd

@@ -205,8 +205,6 @@ void Query::planes(double s, double *normals, double *offsets, int8_t *feat_a, i
     const double mid = 0.5 * (lo + route.boundary());
     Vec3 gs[6];
     for (int g = 0; g < 6; ++g) gs[g] = pair_.g[g].at(mid);
-    double pv[20];
-    triple_products(gs, pv);
     FacetValues f;
     facet_values(pair_, s, f, nullptr);
     for (int k = 0; k < 30; ++k) {
@@ -218,7 +216,7 @@ void Query::planes(double s, double *normals, double *offsets, int8_t *feat_a, i
         // D = A - B does not move with the shared translation: offsets need no origin.
         offsets[k] = -(f.q[k] + f.tau[ax]) / nn;
         int8_t sig[6];
-        axis_signs(ax, pv, sig);
+        axis_signs(ax, gs, sig);
         facet_features(k, sig, feat_a + 3 * k, feat_b + 3 * k);
     }
 }

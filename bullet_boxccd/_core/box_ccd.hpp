@@ -70,7 +70,7 @@ public:
     Query &operator=(const Query &) = delete;
 
     // Raises SingularMotionError if A's or B's 3x3 part degenerates in range.
-    void check_regular(const char *name_a, const char *name_b) { boxccd::check_regular(pair_, cof_, name_a, name_b); }
+    void check_regular(const char *name_a, const char *name_b) { boxccd::check_regular(pair_, name_a, name_b); }
 
     Hit solve(bool want_geometry);
 

@@ -77,7 +77,7 @@ constexpr double kDerivativeRounding = 8.0;
 // within 0.1 to 1.7 last steps on the benchmark pairs: measured, see
 // docs/design.md). kMaxCullSteps caps the advancement (slow, grazing approaches
 // converge linearly); the BMS search then starts where it stopped.
-constexpr double kHandover = 1e-2;
+constexpr double kHandover = 1e-1;
 constexpr double kWindow = 2.0;
 constexpr int kMaxCullSteps = 12;
 // The BMS search runs window after window (each proven apart to its end hands

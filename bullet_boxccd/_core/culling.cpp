@@ -22,7 +22,7 @@ SeparatingAxis most_separating(const Pair &pair, const Sample &at) {
     axes_at(pair, at.g, at.d, v);
     SeparatingAxis best;
     double best_gap2 = 0.0;  // (gap / |n|)^2 of the best: ranks the axes without a sqrt
-    const double margin = pair.unit_margin();
+    const double margin = pair.unit_margin;
     for (int ax = 0; ax < 15; ++ax) {
         const double gap = std::fabs(v.nd[ax]) - v.support[ax];
         if (!(gap > 0.0 && v.direction[ax])) continue;
@@ -31,14 +31,34 @@ SeparatingAxis most_separating(const Pair &pair, const Sample &at) {
             best_gap2 = gap2;
             best.axis = ax;
             best.facet = 2 * ax + (v.nd[ax] < 0.0);
-            best.n = v.n[ax];
         }
     }
     if (best.axis >= 0) {
+        best.n = axis_normal(at.g, best.axis);
         best.len = std::sqrt(v.nn2[best.axis]);
         best.gap = std::sqrt(best_gap2);
     }
     return best;
+}
+
+SeparatingAxis axis_at(const Pair &pair, const Sample &at, int ax) {
+    SeparatingAxis out;
+    const int g1 = axis_generator(ax, 0), g2 = axis_generator(ax, 1);
+    const Vec3 n = cross3(at.g[g1], at.g[g2]);
+    const double nn2 = dot3(n, n), nd = dot3(n, at.d);
+    constexpr double kParallel2 = kParallel * kParallel;
+    if (!(nn2 > kParallel2 * dot3(at.g[g1], at.g[g1]) * dot3(at.g[g2], at.g[g2]))) return out;
+    double support = 0.0;
+    for (int g = 0; g < 6; ++g)
+        if (g != g1 && g != g2) support += pair.h[g] * std::fabs(dot3(n, at.g[g]));
+    const double len = std::sqrt(nn2), gap = (std::fabs(nd) - support) / len;
+    if (!(gap > pair.unit_margin)) return out;
+    out.axis = ax;
+    out.facet = 2 * ax + (nd < 0.0);
+    out.n = n;
+    out.len = len;
+    out.gap = gap;
+    return out;
 }
 
 namespace {
@@ -80,7 +100,7 @@ double apart_until(const Pair &pair, const Sample &at, const SeparatingAxis &axi
     const Vec3 &n = axis.n;
     const double nd = dot3(n, at.d);
     const double sigma = nd >= 0.0 ? 1.0 : -1.0;
-    double A = sigma * nd - axis.len * pair.unit_margin();
+    double A = sigma * nd - axis.len * pair.unit_margin;
     double B = sigma * dot3(n, at.dd), C = sigma * dot3(n, pair.d.c[2]);
     struct Kink {
         double tau, a2, b2;  // where, and the change of A and B there
@@ -117,6 +137,10 @@ double apart_until(const Pair &pair, const Sample &at, const SeparatingAxis &axi
     return hi;
 }
 
+// The most separating axis is searched at the start; later steps keep the axis
+// they had (its normal at the new time: one axis instead of 15) while it still
+// separates by more than the handover distance, and search again when it does not,
+// so the handover happens only where no axis separates by more.
 Culling advance_on_axes(const Pair &pair, double from, double min_window) {
     Culling out;
     const auto window = [&](double start, double step) {
@@ -124,10 +148,14 @@ Culling advance_on_axes(const Pair &pair, double from, double min_window) {
         out.end = std::min(1.0, start + std::max(kWindow * step, min_window));
         return out;
     };
+    const double handover = kHandover * pair.size;
     double s = from, step = 1.0 - from;  // the last step (the whole rest before the first)
+    int kept = -1;                       // the axis of the last step
     for (int k = 0;; ++k) {
         const Sample at = sample_at(pair, s);
-        const SeparatingAxis axis = most_separating(pair, at);
+        SeparatingAxis axis;
+        if (kept >= 0) axis = axis_at(pair, at, kept);
+        if (axis.axis < 0 || axis.gap <= handover) axis = most_separating(pair, at);
         if (axis.axis < 0) return window(s, step);  // touching or overlapping at s: the contact is at s
         const double r = apart_until(pair, at, axis, 1.0);
         if (r >= 1.0) {
@@ -138,7 +166,8 @@ Culling advance_on_axes(const Pair &pair, double from, double min_window) {
         // Near the contact (or no longer advancing): the BMS search takes over
         // from r, where the same facet is still the one most likely to separate.
         if (!(r > s)) return window(r, 1.0);
-        if (axis.gap <= kHandover * pair.size || k + 1 == kMaxCullSteps) return window(r, r - s);
+        if (axis.gap <= handover || k + 1 == kMaxCullSteps) return window(r, r - s);
+        kept = axis.axis;
         step = r - s;
         s = r;
     }

@@ -33,6 +33,9 @@ struct SeparatingAxis {
 };
 SeparatingAxis most_separating(const Pair &pair, const Sample &at);
 
+// One axis at a sample (its normal there), if it separates by more than the margin.
+SeparatingAxis axis_at(const Pair &pair, const Sample &at, int axis);
+
 // The first s' in (at.s, hi] at which a lower bound of the gap along the fixed
 // axis reaches the margin; hi if it stays above it. Before the answer the boxes
 // are apart.

@@ -9,12 +9,20 @@ namespace {
 
 // The three generators of switch function k: (a x b) . c, a x b face `face`.
 struct SwitchGenerators {
-    int a, b, c, face;
+    int8_t a, b, c, face;
 };
-constexpr SwitchGenerators switch_generators(int k) {
-    const int q = k / 9, i = (k % 9) / 3, l = k % 3;
-    return {3 * q + (i + 1) % 3, 3 * q + (i + 2) % 3, 3 * (1 - q) + l, 3 * q + i};
-}
+struct SwitchTable {
+    SwitchGenerators k[kSwitches]{};
+    constexpr SwitchTable() {
+        for (int n = 0; n < kSwitches; ++n) {
+            const int q = n / 9, i = (n % 9) / 3, l = n % 3;
+            k[n] = {static_cast<int8_t>(3 * q + (i + 1) % 3), static_cast<int8_t>(3 * q + (i + 2) % 3),
+                    static_cast<int8_t>(3 * (1 - q) + l), static_cast<int8_t>(3 * q + i)};
+        }
+    }
+};
+constexpr SwitchTable kSwitchTable;
+inline const SwitchGenerators &switch_generators(int k) { return kSwitchTable.k[k]; }
 
 // A switch function that stays zero (within rounding) over the whole range is a
 // normal component that does not change the topology: ignore it.
@@ -37,12 +45,14 @@ SwitchProbe::SwitchProbe(const Pair &pair, double from, double to) : pair_(pair)
     }
 }
 
+// Over the interval: |g| <= |g(mid)| + max|g'| w, |g'| <= max|g'|, |g''| = 2 |c2|,
+// with the maxima over the whole range (Pair::gbounds: g' is linear in s).
 void SwitchProbe::bound_generator(int g) {
     if (bounded_ & (1u << g)) return;
-    const double len = norm3(g_[g]), dlen = norm3(dg_[g]), len2 = norm3(pair_.g[g].c[2]);  // len2: of the s^2 term
-    v_[g] = len + (dlen + len2 * w_) * w_;
-    d1_[g] = dlen + 2.0 * len2 * w_;
-    d2_[g] = 2.0 * len2;
+    const GeneratorBounds &b = pair_.gbounds[g];
+    v_[g] = norm3(g_[g]) + b.d1 * w_;
+    d1_[g] = b.d1;
+    d2_[g] = b.d2;
     bounded_ |= static_cast<uint8_t>(1u << g);
 }
 

@@ -3,9 +3,12 @@
 // sign, so each of the axis' two facets is a fixed signed sum, a polynomial of
 // degree <= 6:
 //   Q_k(s) = +-n.d - sum_g sig_g h_g (n.g) - tau_axis     (<= 0: touching)
+//          = n . (+-d - sum_g sig_g h_g g) - tau_axis
 // with sig_g the sign of n.g at the section's middle (the seed's t_0: "sample the
 // topology at a middle point") and tau the axis' touching tolerance plus its
-// rounding allowance there.
+// rounding allowance there. The second form is the facet's plane through its
+// support point (a vertex combination of the two boxes): one dot product of the
+// axis' normal (degree 4) with a quadratic curve.
 #pragma once
 
 #include <array>
@@ -15,9 +18,9 @@
 
 namespace boxccd {
 
-// Signs of n_axis . g (+1, -1; 0 for a structural zero) at s, from the 20 triple
-// products there (triple_products, bms.hpp).
-void axis_signs(int axis, const double *pv, int8_t *sig);
+// Signs of n_axis . g (+1, -1; 0 for the axis' own two generators, a structural
+// zero) from the generators gs at one time.
+void axis_signs(int axis, const Vec3 *gs, int8_t *sig);
 
 // The touching features of facet k with the axis' signs sig, as sign triples
 // over each box's local axes (-1 = lo side, +1 = hi side, 0 = the feature spans
