@@ -122,6 +122,7 @@ const Names &names() {
 // value), registered by bullet_boxccd.solver at import.
 struct ResultTypes {
     nb::object contact, feature, outcome[kOutcomes];
+    nb::object features[3 * 27 * 27];  // Feature instances made so far (feature_of)
 };
 ResultTypes &result_types() {
     static ResultTypes *r = new ResultTypes;  // never freed: lives as long as the module
@@ -136,6 +137,7 @@ void set_result_types(nb::handle contact, nb::handle feature, nb::handle outcome
     for (int k = 0; k < kOutcomes; ++k) r.outcome[k] = outcome(k);  // Outcome(k): the enum member
     r.contact = nb::borrow(contact);
     r.feature = nb::borrow(feature);
+    for (nb::object &f : r.features) f = nb::object();  // instances of an earlier Feature type
 }
 
 // A new reference from the C API, or the pending Python error as an exception.
@@ -163,17 +165,28 @@ nb::object new_vec3(const std::array<double, 3> &v) {
     return a;
 }
 
+// The Feature(kind, a, b) of a facet and its features, made once per combination
+// (3 x 27 x 27 at most; Features are immutable) and shared by every contact.
+nb::object feature_of(int facet, const std::array<int8_t, 3> &feat_a, const std::array<int8_t, 3> &feat_b) {
+    const auto index = [](const std::array<int8_t, 3> &sg) { return 9 * (sg[0] + 1) + 3 * (sg[1] + 1) + sg[2] + 1; };
+    const int kind = kind_index(facet);
+    ResultTypes &types = result_types();
+    nb::object &slot = types.features[(kind * 27 + index(feat_a)) * 27 + index(feat_b)];
+    if (!slot.is_valid()) {
+        const Names &n = names();
+        slot = new_named(types.feature, {n.kind[kind], n.of(feat_a), n.of(feat_b)});
+    }
+    return slot;
+}
+
 // A result as a Contact, or None when the boxes stay apart. Without a facet
 // (NonFinite) the feature is None and the point and normal are NaN.
 nb::object hit_result(const Hit &h) {
     if (h.outcome == Outcome::Separated) return nb::none();
     const ResultTypes &types = result_types();
     if (!types.contact.is_valid()) throw std::logic_error("bullet_boxccd.solver did not register its result types");
-    const Names &n = names();
     const bool facet = h.facet >= 0;
-    const nb::object feature = facet ? new_named(types.feature, {n.kind[kind_index(h.facet)], n.of(h.feat_a),
-                                                                 n.of(h.feat_b)})
-                                     : nb::none();
+    const nb::object feature = facet ? feature_of(h.facet, h.feat_a, h.feat_b) : nb::none();
     constexpr double nan = std::numeric_limits<double>::quiet_NaN();
     const boxccd::Vec3 none{nan, nan, nan};
     const nb::object t = checked(PyFloat_FromDouble(h.t)), point = new_vec3(facet ? h.point : none),

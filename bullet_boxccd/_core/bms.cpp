@@ -76,68 +76,85 @@ void add_entry_at_t0(DD &x, const double *C, int r, int c, double t0, double k) 
 
 }  // namespace
 
+namespace {
+
+// One box's generators, half extents and centre as curves in s, with the
+// centre's constant term exactly (double-double) and the magnitude of the
+// summands of its higher coefficients added to `summands`.
+void box_in_s(const BoxInput &bx, double t0, double w, Curve *g, double *h, Curve &centre, DD *c0, double &summands) {
+    const double *C = bx.coeffs;
+    double m[3];  // the box's centre in its own frame
+    bool offset = false;
+    for (int i = 0; i < 3; ++i) {
+        m[i] = 0.5 * (bx.lo[i] + bx.hi[i]);
+        h[i] = 0.5 * (bx.hi[i] - bx.lo[i]);
+        offset = offset || m[i] != 0.0;
+    }
+    const bool plain = t0 == 0.0 && w == 1.0;  // t_range (0, 1): the coefficients as given
+    double e[3];
+    for (int r = 0; r < 3; ++r) {
+        for (int i = 0; i < 3; ++i) {
+            if (plain) {
+                for (int k = 0; k < 3; ++k) g[i].c[k][r] = coef(C, k, r, i);
+            } else {
+                entry_in_s(C, r, i, t0, w, e);
+                for (int k = 0; k < 3; ++k) g[i].c[k][r] = e[k];
+            }
+        }
+        if (plain) {
+            for (int k = 0; k < 3; ++k) e[k] = coef(C, k, r, 3);
+        } else {
+            entry_in_s(C, r, 3, t0, w, e);
+        }
+        double c1 = e[1], c2 = e[2];
+        summands += std::fabs(c1) + std::fabs(c2);
+        if (plain && !offset) {  // the constant term as given is exact
+            c0[r] = {e[0], 0.0};
+        } else {
+            c0[r] = DD{};
+            add_entry_at_t0(c0[r], C, r, 3, t0, 1.0);
+            for (int i = 0; i < 3; ++i) {
+                if (m[i] == 0.0) continue;
+                add_entry_at_t0(c0[r], C, r, i, t0, m[i]);
+                c1 += m[i] * g[i].c[1][r];
+                c2 += m[i] * g[i].c[2][r];
+                summands += std::fabs(m[i]) * (std::fabs(g[i].c[1][r]) + std::fabs(g[i].c[2][r]));
+            }
+        }
+        centre.c[1][r] = c1;
+        centre.c[2][r] = c2;
+    }
+}
+
+}  // namespace
+
 Pair::Pair(const BoxInput &a, const BoxInput &b, double t0_, double t1_, const Tolerances &tol_)
     : t0(t0_), t1(t1_), tol(tol_) {
     const double w = t1 - t0;
-    const bool plain = t0 == 0.0 && w == 1.0;
-    const BoxInput *box[2] = {&a, &b};
-    DD centre0[2][3];   // centres at s = 0, exactly
-    Curve centre[2];    // centres, higher coefficients (the constant term set below)
-    double summands = 0.0;  // magnitude of the summands of the higher coefficients
-    for (int q = 0; q < 2; ++q) {
-        const BoxInput &bx = *box[q];
-        double m[3];  // the box's centre in its own frame
-        for (int i = 0; i < 3; ++i) {
-            m[i] = 0.5 * (bx.lo[i] + bx.hi[i]);
-            h[3 * q + i] = 0.5 * (bx.hi[i] - bx.lo[i]);
-        }
-        for (int r = 0; r < 3; ++r) {
-            double e[3];
-            for (int i = 0; i < 3; ++i) {
-                if (plain) {  // t_range (0, 1): the coefficients as given
-                    for (int k = 0; k < 3; ++k) g[3 * q + i].c[k][r] = coef(bx.coeffs, k, r, i);
-                    continue;
-                }
-                entry_in_s(bx.coeffs, r, i, t0, w, e);
-                for (int k = 0; k < 3; ++k) g[3 * q + i].c[k][r] = e[k];
-            }
-            entry_in_s(bx.coeffs, r, 3, t0, w, e);
-            double c1 = e[1], c2 = e[2];
-            summands += std::fabs(e[1]) + std::fabs(e[2]);
-            add_entry_at_t0(centre0[q][r], bx.coeffs, r, 3, t0, 1.0);
-            for (int i = 0; i < 3; ++i) {
-                if (m[i] == 0.0) continue;
-                add_entry_at_t0(centre0[q][r], bx.coeffs, r, i, t0, m[i]);
-                const Curve &gi = g[3 * q + i];
-                c1 += m[i] * gi.c[1][r];
-                c2 += m[i] * gi.c[2][r];
-                summands += std::fabs(m[i]) * (std::fabs(gi.c[1][r]) + std::fabs(gi.c[2][r]));
-            }
-            centre[q].c[1][r] = c1;
-            centre[q].c[2][r] = c2;
-        }
-    }
+    DD centre0[2][3];  // the centres at s = 0, exactly
+    double summands = 0.0;
+    box_in_s(a, t0, w, g, h, cA, centre0[0], summands);
+    box_in_s(b, t0, w, g + 3, h + 3, cB, centre0[1], summands);
     // The pair's frame: A's centre at s = 0, rounded. A's constant term there is
     // the rounding residue; B's is rounded once, relative to its local value.
     for (int r = 0; r < 3; ++r) {
         origin[r] = centre0[0][r].hi;
-        centre[0].c[0][r] = centre0[0][r].lo;
+        cA.c[0][r] = centre0[0][r].lo;
         DD local;
         two_sum(centre0[1][r].hi, -origin[r], local.hi, local.lo);
         local.lo += centre0[1][r].lo;
-        centre[1].c[0][r] = round_dd(local);
+        cB.c[0][r] = round_dd(local);
     }
-    cA = centre[0];
-    cB = centre[1];
     for (int k = 0; k < 3; ++k)
         for (int r = 0; r < 3; ++r) d.c[k][r] = cB.c[k][r] - cA.c[k][r];
     dmag = summands + sum_abs3(cA.c[0]) + sum_abs3(cB.c[0]);
     size = hmag = 0.0;
     turning = false;
     for (int k = 0; k < 6; ++k) {
-        gmag[k] = g[k].magnitude();
-        gdeg[k] = g[k].constant() ? 0 : 2;
         const Vec3 &c1 = g[k].c[1], &c2 = g[k].c[2];
+        const double m1 = sum_abs3(c1), m2 = sum_abs3(c2);
+        gmag[k] = sum_abs3(g[k].c[0]) + m1 + m2;
+        gdeg[k] = m1 + m2 == 0.0 ? 0 : 2;
         gbounds[k] = {0.0, 0.0};
         if (gdeg[k])
             gbounds[k] = {std::max(norm3(c1), norm3({c1[0] + 2.0 * c2[0], c1[1] + 2.0 * c2[1], c1[2] + 2.0 * c2[2]})),
@@ -146,7 +163,7 @@ Pair::Pair(const BoxInput &a, const BoxInput &b, double t0_, double t1_, const T
         size += h[k] * norm3(g[k].at(0.5));
         turning = turning || gdeg[k];
     }
-    ddeg = d.constant() ? 0 : 2;
+    ddeg = sum_abs3(d.c[1]) + sum_abs3(d.c[2]) == 0.0 ? 0 : 2;
     const double rounding = tol.rounding * kEps * (dmag + hmag);
     for (int ax = 0; ax < 15; ++ax) noise[ax] = rounding * gmag[axis_generator(ax, 0)] * gmag[axis_generator(ax, 1)];
     unit_margin = tol.gap_rel * size + rounding;

@@ -2,6 +2,7 @@
 #include "culling.hpp"
 
 #include <algorithm>
+#include <limits>
 
 namespace boxccd {
 
@@ -17,23 +18,30 @@ Sample sample_at(const Pair &pair, double s) {
     return a;
 }
 
+constexpr double kTiny = std::numeric_limits<double>::min();
+
 SeparatingAxis most_separating(const Pair &pair, const Sample &at) {
     AxesAt v;
     axes_at(pair, at.g, at.d, v);
     SeparatingAxis best;
-    double best_gap2 = 0.0;  // (gap / |n|)^2 of the best: ranks the axes without a sqrt
+    // (gap / |n|)^2 ranks the axes without a sqrt; written without branches (which
+    // axis wins is data, and mispredicted branches cost more than 15 divisions).
     const double margin = pair.unit_margin;
+    double best_gap2 = margin * margin;
+    int best_ax = -1;
     for (int ax = 0; ax < 15; ++ax) {
         const double gap = std::fabs(v.nd[ax]) - v.support[ax];
-        if (!(gap > 0.0 && v.direction[ax])) continue;
-        const double gap2 = gap * gap / v.nn2[ax];
-        if (gap2 > best_gap2 && gap2 > margin * margin) {
-            best_gap2 = gap2;
-            best.axis = ax;
-            best.facet = 2 * ax + (v.nd[ax] < 0.0);
-        }
+        const double separates = static_cast<double>((gap > 0.0) & v.direction[ax]);
+        // nn2 > 0 where there is a direction; the floor only keeps 0 / 0 out of the rest.
+        const double nn2 = v.nn2[ax] > kTiny ? v.nn2[ax] : kTiny;
+        const double gap2 = gap * gap / nn2 * separates;
+        const bool better = gap2 > best_gap2;
+        best_gap2 = better ? gap2 : best_gap2;
+        best_ax = better ? ax : best_ax;
     }
-    if (best.axis >= 0) {
+    if (best_ax >= 0) {
+        best.axis = best_ax;
+        best.facet = 2 * best_ax + (v.nd[best_ax] < 0.0);
         best.n = axis_normal(at.g, best.axis);
         best.len = std::sqrt(v.nn2[best.axis]);
         best.gap = std::sqrt(best_gap2);
@@ -48,9 +56,10 @@ SeparatingAxis axis_at(const Pair &pair, const Sample &at, int ax) {
     const double nn2 = dot3(n, n), nd = dot3(n, at.d);
     constexpr double kParallel2 = kParallel * kParallel;
     if (!(nn2 > kParallel2 * dot3(at.g[g1], at.g[g1]) * dot3(at.g[g2], at.g[g2]))) return out;
+    // The axis' own generators add only their rounding (n.g is zero for them):
+    // summed without a branch, that makes the gap a few eps smaller, never larger.
     double support = 0.0;
-    for (int g = 0; g < 6; ++g)
-        if (g != g1 && g != g2) support += pair.h[g] * std::fabs(dot3(n, at.g[g]));
+    for (int g = 0; g < 6; ++g) support += pair.h[g] * std::fabs(dot3(n, at.g[g]));
     const double len = std::sqrt(nn2), gap = (std::fabs(nd) - support) / len;
     if (!(gap > pair.unit_margin)) return out;
     out.axis = ax;
@@ -99,42 +108,40 @@ double first_root(double A, double B, double C, double lo, double hi) {
 double apart_until(const Pair &pair, const Sample &at, const SeparatingAxis &axis, double hi) {
     const Vec3 &n = axis.n;
     const double nd = dot3(n, at.d);
-    const double sigma = nd >= 0.0 ? 1.0 : -1.0;
+    const double sigma = std::copysign(1.0, nd);
     double A = sigma * nd - axis.len * pair.unit_margin;
     double B = sigma * dot3(n, at.dd), C = sigma * dot3(n, pair.d.c[2]);
-    struct Kink {
-        double tau, a2, b2;  // where, and the change of A and B there
-    } kinks[6];
-    int nk = 0;
-    const double span = hi - at.s;
+    // Kinks: where |a + b tau| turns back up (tau = -a / b, a + b tau shrinking), with
+    // the change of A and B there; +inf where it does not. Branch-free: the signs
+    // are data, and mispredicted branches cost more than the arithmetic.
+    double kink[6], dA[6], dB[6];
     for (int g = 0; g < 6; ++g) {
         const double a = dot3(n, at.g[g]), b = dot3(n, at.dg[g]), c = dot3(n, pair.g[g].c[2]);
-        const double sg = a > 0.0 || (a == 0.0 && b >= 0.0) ? 1.0 : -1.0;  // the sign of a + b tau just after 0
-        A -= pair.h[g] * sg * a;
-        B -= pair.h[g] * sg * b;
+        const double sg = std::copysign(1.0, a != 0.0 ? a : b);  // the sign of a + b tau just after 0
+        const double ha = pair.h[g] * sg * a, hb = pair.h[g] * sg * b;
+        A -= ha;
+        B -= hb;
         C -= pair.h[g] * std::fabs(c);
-        if (sg * b < 0.0) {  // |a + b tau| turns back up at tau = -a / b
-            const Kink kink = {-a / b, 2.0 * pair.h[g] * sg * a, 2.0 * pair.h[g] * sg * b};
-            if (!(kink.tau < span)) continue;
-            int at_k = nk++;  // insertion sort: at most six kinks
-            for (; at_k > 0 && kinks[at_k - 1].tau > kink.tau; --at_k) kinks[at_k] = kinks[at_k - 1];
-            kinks[at_k] = kink;
-        }
+        kink[g] = hb < 0.0 ? -a / b : std::numeric_limits<double>::infinity();
+        dA[g] = 2.0 * ha;
+        dB[g] = 2.0 * hb;
     }
-    double lo = 0.0;
-    for (int k = 0; k <= nk; ++k) {
-        const double end = k < nk ? kinks[k].tau : span;
+    // Segment by segment, from tau = 0 up to the next kink, until a root.
+    const double span = hi - at.s;
+    for (double lo = 0.0;;) {
+        int next = 0;
+        for (int g = 1; g < 6; ++g) next = kink[g] < kink[next] ? g : next;
+        const double end = std::min(kink[next], span);
         if (end > lo) {
             const double r = first_root(A, B, C, lo, end);
             if (!std::isnan(r)) return at.s + r * (1.0 - 8.0 * kEps);
         }
-        if (k < nk) {
-            A += kinks[k].a2;
-            B += kinks[k].b2;
-            lo = std::max(lo, end);
-        }
+        if (!(kink[next] < span)) return hi;
+        A += dA[next];
+        B += dB[next];
+        kink[next] = std::numeric_limits<double>::infinity();
+        lo = std::max(lo, end);
     }
-    return hi;
 }
 
 // The most separating axis is searched at the start; later steps keep the axis
