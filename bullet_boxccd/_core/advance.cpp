@@ -26,7 +26,6 @@ void facet_values(const Pair &pair, double s, FacetValues &f, const FixedAxes *f
         for (int ax = 0; ax < 15; ++ax) {
             const double nd = dot3(fixed->n[ax], d), base = fixed->at.support[ax] + fixed->tau[ax];
             f.len[ax] = fixed->len[ax];
-            f.tau[ax] = fixed->tau[ax];
             f.q[2 * ax] = nd - base;
             f.q[2 * ax + 1] = -nd - base;
         }
@@ -37,13 +36,41 @@ void facet_values(const Pair &pair, double s, FacetValues &f, const FixedAxes *f
     AxesAt v;
     axes_at(pair, gs, d, v);
     for (int ax = 0; ax < 15; ++ax) {
-        const double len = std::sqrt(v.nn2[ax]);
-        f.len[ax] = v.direction[ax] ? len : 0.0;
-        f.tau[ax] = pair.tau(ax, len);
-        f.q[2 * ax] = v.nd[ax] - v.support[ax] - f.tau[ax];
-        f.q[2 * ax + 1] = -v.nd[ax] - v.support[ax] - f.tau[ax];
+        // tau >= noise: an axis whose gap does not exceed its noise has no positive
+        // facet, and needs no |n| (a square root) for its tolerance.
+        double tau = pair.noise[ax];
+        f.len[ax] = -1.0;
+        if (std::fabs(v.nd[ax]) - v.support[ax] > tau) {
+            const double len = std::sqrt(v.nn2[ax]);
+            f.len[ax] = v.direction[ax] ? len : 0.0;
+            tau = pair.tau(ax, len);
+        }
+        f.q[2 * ax] = v.nd[ax] - v.support[ax] - tau;
+        f.q[2 * ax + 1] = -v.nd[ax] - v.support[ax] - tau;
     }
 }
+
+namespace {
+
+// The facet of least penetration at s: the largest +-n.d - support over |n| among
+// the axes with a direction.
+int least_penetration(const Pair &pair, double s, const Vec3 *gs) {
+    AxesAt v;
+    axes_at(pair, gs, pair.d.at(s), v);
+    int best = 0;
+    double best_v = -std::numeric_limits<double>::infinity();
+    for (int ax = 0; ax < 15; ++ax) {
+        if (!v.direction[ax]) continue;
+        const double len = std::sqrt(v.nn2[ax]), gap = (std::fabs(v.nd[ax]) - v.support[ax]) / len;
+        if (gap > best_v) {
+            best_v = gap;
+            best = 2 * ax + (v.nd[ax] < 0.0);
+        }
+    }
+    return best;
+}
+
+}  // namespace
 
 namespace {
 
@@ -160,21 +187,9 @@ int contact_facet(const Pair &pair, const SearchState &st, double s, int8_t *sig
         std::copy(st.pieces[st.last].sig, st.pieces[st.last].sig + 6, sig);
         return st.last;
     }
-    FacetValues f;
-    facet_values(pair, s, f, st.fixed);
-    int best = 0;
-    double best_v = -std::numeric_limits<double>::infinity();
-    for (int k = 0; k < 30; ++k) {
-        const double len = f.len[k / 2];
-        if (len == 0.0) continue;
-        const double v = (f.q[k] + f.tau[k / 2]) / len;
-        if (v > best_v) {
-            best_v = v;
-            best = k;
-        }
-    }
     Vec3 gs[6];
     for (int g = 0; g < 6; ++g) gs[g] = pair.g[g].at(s);
+    const int best = least_penetration(pair, s, gs);
     axis_signs(best / 2, gs, sig);
     return best;
 }

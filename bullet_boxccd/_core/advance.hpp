@@ -13,11 +13,13 @@
 
 namespace boxccd {
 
-// The 30 facets at s: q[k] = +-n.d - support - tau[axis] (<= 0: touching), the
-// tolerance tau at s, and each axis' |n| at s (0: no direction). Boxes that do
-// not turn have constant axes: `fixed` (from fixed_axes) then saves all but n.d.
+// The 30 facets at s: q[k] = +-n.d - support - tau[axis] (<= 0: touching), and
+// each axis' |n| at s (0: no direction). An axis whose gap |n.d| - support is
+// within its rounding allowance cannot have a facet with q > 0: its q is that
+// bound, not exact, and its |n| is not computed (-1). Boxes that do not turn have
+// constant axes: `fixed` (from fixed_axes) then saves all but n.d.
 struct FacetValues {
-    double q[30], tau[15], len[15];
+    double q[30], len[15];
 };
 struct FixedAxes {
     AxesAt at;

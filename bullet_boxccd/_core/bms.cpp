@@ -232,10 +232,8 @@ const PVec &Cofactors::normal(int ax) {
 
 const Poly &Cofactors::projection(int k) {
     if (!(proj_built_ & (1u << k))) {
-        // k < 18: S[q][i][l] = n_{3q+i} . g_{3(1-q)+l}; k = kDet + q: n_{3q} . g_{3q}.
-        const int q = k < kSwitches ? k / 9 : k - kDet;
-        const int axis = k < kSwitches ? 3 * q + (k % 9) / 3 : 3 * q;
-        const int gen = k < kSwitches ? 3 * (1 - q) + k % 3 : 3 * q;
+        // S[q][i][l] = n_{3q+i} . g_{3(1-q)+l}.
+        const int q = k / 9, axis = 3 * q + (k % 9) / 3, gen = 3 * (1 - q) + k % 3;
         proj_[k] = dot_curve(normal(axis), pair_.normal_degree(axis), pair_.g[gen], pair_.gdeg[gen]);
         trim(proj_[k]);  // constant when the boxes do not turn
         proj_built_ |= 1u << k;

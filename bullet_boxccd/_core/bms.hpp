@@ -160,13 +160,13 @@ inline Vec3 axis_normal(const Vec3 *gs, int axis) { return cross3(gs[axis_genera
 class Cofactors {
 public:
     explicit Cofactors(const Pair &pair);
-    const PVec &normal(int axis);        // n_axis(s)
-    const Poly &projection(int k);       // S[q][i][l] or det (index as in Projection)
+    const PVec &normal(int axis);   // n_axis(s)
+    const Poly &projection(int k);  // switch function S[q][i][l], k = 9q + 3i + l < kSwitches
 
 private:
     const Pair &pair_;
     PVec n_[15];
-    Poly proj_[20];
+    Poly proj_[kSwitches];
     uint32_t n_built_ = 0, proj_built_ = 0;
 };
 

@@ -205,16 +205,18 @@ void Query::planes(double s, double *normals, double *offsets, int8_t *feat_a, i
     const double mid = 0.5 * (lo + route.boundary());
     Vec3 gs[6];
     for (int g = 0; g < 6; ++g) gs[g] = pair_.g[g].at(mid);
-    FacetValues f;
-    facet_values(pair_, s, f, nullptr);
+    Vec3 gs_s[6];
+    for (int g = 0; g < 6; ++g) gs_s[g] = pair_.g[g].at(s);
+    AxesAt v;
+    axes_at(pair_, gs_s, pair_.d.at(s), v);
     for (int k = 0; k < 30; ++k) {
         const int ax = k / 2;
         const double sgn = k % 2 == 0 ? 1.0 : -1.0;
-        const Vec3 n = cof_.normal(ax)(s);
+        const Vec3 n = axis_normal(gs_s, ax);
         const double nn = norm3(n);
         for (int r = 0; r < 3; ++r) normals[3 * k + r] = sgn * n[r] / nn;
         // D = A - B does not move with the shared translation: offsets need no origin.
-        offsets[k] = -(f.q[k] + f.tau[ax]) / nn;
+        offsets[k] = (v.support[ax] - sgn * v.nd[ax]) / nn;
         int8_t sig[6];
         axis_signs(ax, gs, sig);
         facet_features(k, sig, feat_a + 3 * k, feat_b + 3 * k);

@@ -71,14 +71,21 @@ constexpr double kParallelEdges2 = kParallel * kParallel;
 constexpr double kDerivativeRounding = 8.0;
 
 // Conservative advancement before the BMS search (culling.cpp). Each step
-// proves the boxes apart along the most separating axis until a bound of its
-// gap reaches zero; once the gap is below kHandover * size, the BMS search
-// takes over on a window kWindow times the last step long (the contact lies
-// within 0.1 to 1.7 last steps on the benchmark pairs: measured, see
-// docs/design.md). kMaxCullSteps caps the advancement (slow, grazing approaches
-// converge linearly); the BMS search then starts where it stopped.
+// proves the boxes apart along a fixed direction until a bound of its gap
+// reaches zero; once the gap is below kHandover * size, the BMS search takes
+// over on a window kWindow times the last step long (a window that ends before
+// the contact costs one more advancement and a doubled window). kMaxCullSteps
+// caps the advancement (slow, grazing approaches converge linearly); the BMS
+// search then starts where it stopped. Measured on the benchmark pairs
+// (instructions and simulated branch mispredictions, callgrind): kHandover 0.05
+// to 0.3 within 5%, 0.1 the least for hits.
 constexpr double kHandover = 1e-1;
 constexpr double kWindow = 2.0;
+// The first steps use the centre line d as the fixed direction (six projections
+// instead of 15 axes: boxes far apart are as well separated along it) while it
+// separates by more than kCentreLine * size; the 15 axes take over nearer.
+// Measured on the benchmark pairs: 0.1 to 0.5 within 1%, 2 or never 3-13% slower.
+constexpr double kCentreLine = 0.25;
 constexpr int kMaxCullSteps = 12;
 // The BMS search runs window after window (each proven apart to its end hands
 // back to the advancement); this caps the windows (a pass that grazes the

@@ -70,6 +70,22 @@ SeparatingAxis axis_at(const Pair &pair, const Sample &at, int ax) {
     return out;
 }
 
+// The centre line d at the sample as a fixed direction: no BMS axis (axis -1),
+// but as good a separating direction as any for boxes far apart, at the cost of
+// six projections instead of 15 axes.
+SeparatingAxis centre_line(const Pair &pair, const Sample &at) {
+    SeparatingAxis out;
+    const double len = norm3(at.d);
+    double support = 0.0;
+    for (int g = 0; g < 6; ++g) support += pair.h[g] * std::fabs(dot3(at.d, at.g[g]));
+    const double gap = len > 0.0 ? (len * len - support) / len : 0.0;
+    if (!(gap > pair.unit_margin)) return out;
+    out.n = at.d;
+    out.len = len;
+    out.gap = gap;
+    return out;
+}
+
 namespace {
 
 // The first root in (lo, hi] of q(x) = A + B x + C x^2, given q(lo) > 0; NaN if
@@ -158,12 +174,15 @@ Culling advance_on_axes(const Pair &pair, double from, double min_window) {
     const double handover = kHandover * pair.size;
     double s = from, step = 1.0 - from;  // the last step (the whole rest before the first)
     int kept = -1;                       // the axis of the last step
+    bool use_centre = true;
     for (int k = 0;; ++k) {
         const Sample at = sample_at(pair, s);
         SeparatingAxis axis;
         if (kept >= 0) axis = axis_at(pair, at, kept);
-        if (axis.axis < 0 || axis.gap <= handover) axis = most_separating(pair, at);
-        if (axis.axis < 0) return window(s, step);  // touching or overlapping at s: the contact is at s
+        if (kept < 0 && use_centre) axis = centre_line(pair, at);
+        use_centre = use_centre && axis.len > 0.0 && axis.gap > kCentreLine * pair.size;
+        if (axis.len == 0.0 || axis.gap <= handover) axis = most_separating(pair, at);
+        if (axis.len == 0.0) return window(s, step);  // touching or overlapping at s: the contact is at s
         const double r = apart_until(pair, at, axis, 1.0);
         if (r >= 1.0) {
             out.apart = true;

@@ -58,19 +58,26 @@ void SwitchProbe::bound_generator(int g) {
 
 void SwitchProbe::face_at_mid(int f) {
     if (faces_ & (1u << f)) return;
-    const int ga = axis_generator(f, 0), gb = axis_generator(f, 1);
-    n_[f] = cross3(g_[ga], g_[gb]);
-    const Vec3 da = cross3(dg_[ga], g_[gb]), db = cross3(g_[ga], dg_[gb]);
-    dn_[f] = {da[0] + db[0], da[1] + db[1], da[2] + db[2]};
+    n_[f] = cross3(g_[axis_generator(f, 0)], g_[axis_generator(f, 1)]);
     faces_ |= static_cast<uint8_t>(1u << f);
 }
 
-// Taylor's theorem at mid: |p(s) - p(mid)| <= |p'(mid)| w + max|p''| w^2 / 2 for
+void SwitchProbe::face_derivative_at_mid(int f) {
+    if (face_derivatives_ & (1u << f)) return;
+    const int ga = axis_generator(f, 0), gb = axis_generator(f, 1);
+    const Vec3 da = cross3(dg_[ga], g_[gb]), db = cross3(g_[ga], dg_[gb]);
+    dn_[f] = {da[0] + db[0], da[1] + db[1], da[2] + db[2]};
+    face_derivatives_ |= static_cast<uint8_t>(1u << f);
+}
+
+// First order first: |p(s) - p(mid)| <= max|p'| w, with |p'| <= |a'||b||c| +
+// |a||b'||c| + |a||b||c'| over the interval (p and its normal only: no
+// derivative of the normal). Then Taylor's theorem at mid, second order:
+// |p(s) - p(mid)| <= |p'(mid)| w + max|p''| w^2 / 2 for
 // |s - mid| <= w, so p keeps its sign if |p(mid)| exceeds that plus a bound of
 // the rounding of p(mid) and p'(mid). Here p = (a x b) . c with quadratic vector
 // curves a, b, c (the generators): p' = (a' x b + a x b') . c + (a x b) . c', and
-// over the interval |a| <= |a(mid)| + |a'(mid)| w + |a2| w^2, |a'| <= |a'(mid)| +
-// 2 |a2| w and |a''| = 2 |a2| (a2 the s^2 coefficient vector), so
+// over the interval |a| <= |a(mid)| + max|a'| w (bound_generator), so
 //   |p''| <= |a''||b||c| + |a||b''||c| + |a||b||c''| + 2 (|a'||b'||c| + |a'||b||c'| + |a||b'||c'|).
 // The rounding of p and p' is bounded like every other: Tolerances::rounding eps
 // times the product of the three generators' magnitudes, kDerivativeRounding
@@ -82,11 +89,16 @@ bool SwitchProbe::constant(int k) {
     bound_generator(b);
     bound_generator(c);
     face_at_mid(sg.face);
-    const double p = dot3(n_[sg.face], g_[c]), dp = dot3(dn_[sg.face], g_[c]) + dot3(n_[sg.face], dg_[c]);
-    const double curvature = d2_[a] * v_[b] * v_[c] + v_[a] * d2_[b] * v_[c] + v_[a] * v_[b] * d2_[c] +
-                             2.0 * (d1_[a] * d1_[b] * v_[c] + d1_[a] * v_[b] * d1_[c] + v_[a] * d1_[b] * d1_[c]);
+    const double p = dot3(n_[sg.face], g_[c]);
     const double rounding =
         pair_.tol.rounding * kEps * pair_.gmag[a] * pair_.gmag[b] * pair_.gmag[c] * (1.0 + kDerivativeRounding * w_);
+    // First order, the cheapest: |p(s) - p(mid)| <= max|p'| w.
+    const double slope = d1_[a] * v_[b] * v_[c] + v_[a] * d1_[b] * v_[c] + v_[a] * v_[b] * d1_[c];
+    if (std::fabs(p) > slope * w_ + rounding) return true;
+    face_derivative_at_mid(sg.face);
+    const double dp = dot3(dn_[sg.face], g_[c]) + dot3(n_[sg.face], dg_[c]);
+    const double curvature = d2_[a] * v_[b] * v_[c] + v_[a] * d2_[b] * v_[c] + v_[a] * v_[b] * d2_[c] +
+                             2.0 * (d1_[a] * d1_[b] * v_[c] + d1_[a] * v_[b] * d1_[c] + v_[a] * d1_[b] * d1_[c]);
     return std::fabs(p) > std::fabs(dp) * w_ + 0.5 * curvature * w_ * w_ + rounding;
 }
 

@@ -33,13 +33,14 @@ public:
 private:
     void bound_generator(int g);
     void face_at_mid(int face);
+    void face_derivative_at_mid(int face);
 
     const Pair &pair_;
     double w_;                  // half width
     Vec3 g_[6], dg_[6];         // generators and derivatives at mid
     double v_[6], d1_[6], d2_[6];  // bounds of |g|, |g'|, |g''| over the interval
     Vec3 n_[6], dn_[6];         // face normals and their derivatives at mid
-    uint8_t bounded_ = 0, faces_ = 0;
+    uint8_t bounded_ = 0, faces_ = 0, face_derivatives_ = 0;
 };
 
 // The first sign change of switch function k in (from, to]; kNoSwitch if none.

@@ -30,20 +30,11 @@ struct Curve {
         const double s2 = 2.0 * s;
         return {c[1][0] + s2 * c[2][0], c[1][1] + s2 * c[2][1], c[1][2] + s2 * c[2][2]};
     }
-    // Sum of |coefficients|: bounds every component on [0, 1].
-    double magnitude() const { return sum_abs3(c[0]) + sum_abs3(c[1]) + sum_abs3(c[2]); }
-    bool constant() const {
-        for (int k = 1; k < 3; ++k)
-            for (int r = 0; r < 3; ++r)
-                if (c[k][r] != 0.0) return false;
-        return true;
-    }
 };
 
 // A polynomial vector (a face normal or an edge-edge axis: degree <= 4).
 struct PVec {
     Poly x[3];
-    Vec3 operator()(double s) const { return {x[0](s), x[1](s), x[2](s)}; }
 };
 
 // r += k * a * b with degrees known at compile time (the loops unroll).
