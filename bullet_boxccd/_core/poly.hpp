@@ -208,6 +208,15 @@ constexpr double kNoRoot = std::numeric_limits<double>::quiet_NaN();
 // so is an even cluster of roots that doubles cannot separate (the sign is the
 // same on both sides, and the section between them is narrower than a double).
 // An odd cluster is a switch at its middle; `clustered` is set either way.
+// The sign of the first (from_end: last) nonzero control point; 0 if all are zero.
+inline int end_sign(const Bernstein &bz, bool from_end) {
+    for (int i = 0; i <= bz.deg; ++i) {
+        const double b = bz.b[from_end ? bz.deg - i : i];
+        if (b != 0.0) return b > 0.0 ? 1 : -1;
+    }
+    return 0;
+}
+
 inline double first_sign_change(const Poly &p, double lo, double hi, const Bernstein &bz, int depth,
                                 bool &clustered) {
     const int v = sign_variations(bz);
@@ -223,7 +232,14 @@ inline double first_sign_change(const Poly &p, double lo, double hi, const Berns
     Bernstein l, r;
     split_half(bz, l, r);
     const double x = first_sign_change(p, lo, mid, l, depth + 1, clustered);
-    return std::isnan(x) ? first_sign_change(p, mid, hi, r, depth + 1, clustered) : x;
+    if (!std::isnan(x)) return x;
+    // p(mid) == 0 exactly (a root at the split point, e.g. a dyadic one): neither
+    // half sees it as a variation; it is a sign change if the sides differ.
+    if (l.b[l.deg] == 0.0) {
+        const int before = end_sign(l, true), after = end_sign(r, false);
+        if (before != 0 && after != 0 && before != after) return mid;
+    }
+    return first_sign_change(p, mid, hi, r, depth + 1, clustered);
 }
 
 inline double first_sign_change(const Poly &p, double lo, double hi, bool &clustered) {
@@ -236,10 +252,12 @@ inline double first_sign_change(const Poly &p, double lo, double hi, bool &clust
 // doubles can separate, it returns the cluster's start and sets `clustered`.
 inline double first_nonpositive(const Poly &p, double lo, double hi, const Bernstein &bz, int depth,
                                 bool &clustered) {
-    bool all_positive = true;
-    for (int i = 0; i <= bz.deg; ++i) all_positive = all_positive && bz.b[i] > 0.0;
-    if (all_positive) return kNoRoot;
     if (bz.b[0] <= 0.0) return lo;
+    // No negative control point (and b0 > 0): p > 0 on [lo, hi), so the first
+    // nonpositive point is hi if p(hi) = 0 (a root at a split point) and none else.
+    bool nonnegative = true;
+    for (int i = 1; i <= bz.deg; ++i) nonnegative = nonnegative && bz.b[i] >= 0.0;
+    if (nonnegative) return bz.b[bz.deg] == 0.0 ? hi : kNoRoot;
     const int v = sign_variations(bz);
     if (v == 1 && bz.b[bz.deg] <= 0.0) return refine_crossing(p, lo, hi);
     const double mid = 0.5 * (lo + hi);
