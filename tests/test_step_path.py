@@ -123,27 +123,34 @@ def test_first_touch_is_never_late_and_never_missed(seed):
 
 def test_candidate_pairs_match_brute_force():
     """Pairs whose swept bounds meet, at least one fast, each once, with the frame,
-    body, static and self-collision rules, against a brute-force loop."""
+    body, self-collision and collision-filter rules (groups and masks in both of
+    pybullet's modes), against a brute-force loop."""
     rng = np.random.default_rng(3)
-    for _ in range(30):
+    for trial in range(40):
         n_frames = 8
         states = np.array([random_state(rng, 100.0) for _ in range(n_frames)])
         states[:, :3] *= 0.3
         frame_body = rng.integers(0, 5, n_frames).astype(np.int64)
-        flags = (rng.random(n_frames) < 0.3).astype(np.uint8) | (rng.random(n_frames) < 0.5).astype(np.uint8) << 1
+        self_collides = (rng.random(n_frames) < 0.5).astype(np.uint8)
+        group = rng.choice([1, 2, 4, 0], n_frames).astype(np.int64)
+        mask = rng.choice([-1, -3, 1, 0, 6], n_frames).astype(np.int64)
+        mode = trial % 2
         boxes = [(int(rng.integers(0, n_frames)), *random_box(rng)) for _ in range(12)]
         rows = rows_of(states, boxes)
         n_fast = int(rng.integers(0, 6))
         frame = np.array([f for f, _, _ in boxes], dtype=np.int64)
         bounds = _core.swept_bounds(rows)
-        got = {tuple(x) for x in _core.candidate_pairs(bounds, n_fast, frame, frame_body, flags).tolist()}
+        got = {tuple(x) for x in _core.candidate_pairs(bounds, n_fast, frame, frame_body, self_collides, group, mask,
+                                                       mode).tolist()}
         want = set()
         for i in range(n_fast):
             for j in range(len(boxes)):
                 fi, fj = frame[i], frame[j]
                 meet = np.all(bounds[i, :3] <= bounds[j, 3:]) and np.all(bounds[j, :3] <= bounds[i, 3:])
-                if (j == i or (j < n_fast and j < i) or not meet or fi == fj or (flags[fi] & flags[fj] & 1)
-                        or (frame_body[fi] == frame_body[fj] and not flags[fi] & 2)):
+                ab, ba = (group[fi] & mask[fj]) != 0, (group[fj] & mask[fi]) != 0
+                allowed = (ab or ba) if mode == 1 else (ab and ba)
+                if (j == i or (j < n_fast and j < i) or not meet or fi == fj or not allowed
+                        or (frame_body[fi] == frame_body[fj] and not self_collides[fi])):
                     continue
                 want.add((i, j))
         assert got == want

@@ -293,6 +293,13 @@ Out<double, -1, 6> py_swept_bounds(const PathRows &boxes) {
     return Out<double, -1, 6>(out, {n, 6}, owner);
 }
 
+// (depth, axis (3,)) of path_separation at tau.
+nb::tuple py_path_separation(const PathBoxes &boxes, double tau) {
+    auto [out, owner] = new_buffer<double>(3);
+    const double depth = path_separation(boxes.data(), boxes.data() + kPathBoxSize, tau, out);
+    return nb::make_tuple(depth, Out<double, 3>(out, {3}, owner));
+}
+
 double py_first_depth(const PathBoxes &boxes, double tau_from, double target) {
     return first_depth(boxes.data(), boxes.data() + kPathBoxSize, tau_from, target);
 }
@@ -345,23 +352,85 @@ Out<double, -1, 7> py_frame_poses(const States &state, double dt, const Index<-1
 }
 
 Out<int64_t, -1, 2> py_candidate_pairs(const In<-1, 6> &bounds, int64_t n_fast, const Index<-1> &frame,
-                                       const Index<-1> &frame_body, const nb::ndarray<const uint8_t, nb::shape<-1>,
-                                       nb::c_contig, nb::device::cpu> &frame_flags) {
+                                       const Index<-1> &frame_body,
+                                       const nb::ndarray<const uint8_t, nb::shape<-1>, nb::c_contig, nb::device::cpu>
+                                           &self_collides,
+                                       const Index<-1> &group, const Index<-1> &mask, int filter_mode) {
     const int64_t n = int64_t(bounds.shape(0));
     if (frame.shape(0) != size_t(n) || n_fast < 0 || n_fast > n)
         throw nb::value_error(("candidate_pairs: " + std::to_string(n) + " bounds, " + std::to_string(frame.shape(0)) +
                                " frames and n_fast = " + std::to_string(n_fast) +
                                "; expected one frame per box and 0 <= n_fast <= boxes")
                                   .c_str());
-    if (frame_flags.shape(0) != frame_body.shape(0)) throw nb::value_error("frame tables differ in length");
-    for (int64_t i = 0; i < n; ++i) check_index(frame.data()[i], frame_body.shape(0), "frame");
-    const auto pairs = candidate_pairs(bounds.data(), n, n_fast, frame.data(), frame_body.data(), frame_flags.data());
+    const size_t nf = frame_body.shape(0);
+    if (self_collides.shape(0) != nf || group.shape(0) != nf || mask.shape(0) != nf)
+        throw nb::value_error("frame tables differ in length");
+    for (int64_t i = 0; i < n; ++i) check_index(frame.data()[i], nf, "frame");
+    const FrameFilter filter{group.data(), mask.data(), filter_mode};
+    const auto pairs =
+        candidate_pairs(bounds.data(), n, n_fast, frame.data(), frame_body.data(), self_collides.data(), filter);
     auto [out, owner] = new_buffer<int64_t>(2 * pairs.size());
     for (size_t k = 0; k < pairs.size(); ++k) {
         out[2 * k] = pairs[k].first;
         out[2 * k + 1] = pairs[k].second;
     }
     return Out<int64_t, -1, 2>(out, {pairs.size(), 2}, owner);
+}
+
+// Path rows of boxes on kinematic frames: frame f went from poses0[f] to poses1[f] (7 each).
+Out<double, -1, kPathBoxSize> py_path_rows_between(const In<-1, 7> &poses0, const In<-1, 7> &poses1,
+                                                   const Index<-1> &boxes, const Index<-1> &box_frame,
+                                                   const In<-1, 4, 4> &X_CS, const In<-1, 3> &half) {
+    const size_t n = boxes.shape(0), nb_ = box_frame.shape(0);
+    if (X_CS.shape(0) != nb_ || half.shape(0) != nb_) throw nb::value_error("box tables differ in length");
+    if (poses0.shape(0) != poses1.shape(0)) throw nb::value_error("poses0 and poses1 differ in length");
+    auto [out, owner] = new_buffer<double>(kPathBoxSize * n);
+    for (size_t i = 0; i < n; ++i) {
+        const int64_t b = boxes.data()[i];
+        check_index(b, nb_, "box");
+        const int64_t f = box_frame.data()[b];
+        check_index(f, poses0.shape(0), "frame");
+        path_row_between(poses0.data() + 7 * f, poses1.data() + 7 * f, X_CS.data() + 16 * b, half.data() + 3 * b,
+                         out + kPathBoxSize * i);
+    }
+    return Out<double, -1, kPathBoxSize>(out, {n, size_t(kPathBoxSize)}, owner);
+}
+
+// (n, 4, 4) poses of path rows' boxes at taus (one each).
+Out<double, -1, 4, 4> py_row_poses(const PathRows &rows, const In<-1> &taus) {
+    const size_t n = rows.shape(0);
+    if (taus.shape(0) != n) throw nb::value_error("rows and taus differ in length");
+    auto [out, owner] = new_buffer<double>(16 * n);
+    for (size_t i = 0; i < n; ++i) row_pose(rows.data() + kPathBoxSize * i, taus.data()[i], out + 16 * i);
+    return Out<double, -1, 4, 4>(out, {n, 4, 4}, owner);
+}
+
+// Path rows restricted to the window [lo, hi] of the step.
+Out<double, -1, kPathBoxSize> py_window_rows(const PathRows &rows, double lo, double hi) {
+    const size_t n = rows.shape(0);
+    auto [out, owner] = new_buffer<double>(kPathBoxSize * n);
+    for (size_t i = 0; i < n; ++i) window_row(rows.data() + kPathBoxSize * i, lo, hi, out + kPathBoxSize * i);
+    return Out<double, -1, kPathBoxSize>(out, {n, size_t(kPathBoxSize)}, owner);
+}
+
+// Column layouts (name -> (start, stop)) of the frame state and the path row.
+nb::dict layouts() {
+    using fs = FrameState;
+    using pr = PathRow;
+    nb::dict state, row, out;
+    state["position"] = nb::make_tuple(fs::kPosition, fs::kOrientation);
+    state["orientation"] = nb::make_tuple(fs::kOrientation, fs::kVelocity);
+    state["velocity"] = nb::make_tuple(fs::kVelocity, fs::kAngularVelocity);
+    state["angular_velocity"] = nb::make_tuple(fs::kAngularVelocity, fs::kSize);
+    row["pose_after"] = nb::make_tuple(pr::kPoseAfter, pr::kDisplacement);
+    row["displacement"] = nb::make_tuple(pr::kDisplacement, pr::kAxis);
+    row["axis"] = nb::make_tuple(pr::kAxis, pr::kAngle);
+    row["angle"] = nb::make_tuple(pr::kAngle, pr::kBoxInFrame);
+    row["box_in_frame"] = nb::make_tuple(pr::kBoxInFrame, pr::kHalfExtents);
+    row["half_extents"] = nb::make_tuple(pr::kHalfExtents, pr::kSize);
+    out["frame_state"] = state;
+    out["path_row"] = row;
+    return out;
 }
 
 // (first touch of each pair, NaN where none; solver calls made).
@@ -392,6 +461,24 @@ nb::object py_path_contact(const PathBoxes &boxes, double lo, double hi, const T
     const Hit h = path_contact(boxes.data(), boxes.data() + kPathBoxSize, lo, hi, tol);
     if (!h.hit) return nb::none();
     return hit_result(h);
+}
+
+// ---------------------------------------------------------------- hooks
+// A Python callable as a builtin function (builtin_function_or_method), for the
+// plugin's wrappers of pybullet's functions: pybullet_utils.bullet_client passes
+// its client id only to callables that inspect.isbuiltin() accepts. The method
+// definitions live as long as the module (one per wrapped name).
+PyObject *forward_call(PyObject *self, PyObject *args, PyObject *kwargs) { return PyObject_Call(self, args, kwargs); }
+
+nb::object as_builtin(nb::object fn, const std::string &name, const std::string &doc) {
+    if (!PyCallable_Check(fn.ptr())) throw nb::type_error("as_builtin: expected a callable");
+    static std::vector<PyMethodDef *> *defs = new std::vector<PyMethodDef *>;
+    char *n = new char[name.size() + 1], *d = new char[doc.size() + 1];
+    std::copy(name.c_str(), name.c_str() + name.size() + 1, n);
+    std::copy(doc.c_str(), doc.c_str() + doc.size() + 1, d);
+    defs->push_back(new PyMethodDef{n, reinterpret_cast<PyCFunction>(reinterpret_cast<void (*)()>(forward_call)),
+                                    METH_VARARGS | METH_KEYWORDS, d});
+    return checked(PyCFunction_New(defs->back(), fn.ptr()));
 }
 
 }  // namespace
@@ -441,6 +528,7 @@ NB_MODULE(_core, m) {
     m.def("sections", &sections);
     m.def("planes", &planes);
     m.def("path_depth", &py_path_depth, nb::arg("boxes"), nb::arg("taus"));
+    m.def("path_separation", &py_path_separation, nb::arg("boxes"), nb::arg("tau"));
     m.def("first_depth", &py_first_depth, nb::arg("boxes"), nb::arg("tau_from"), nb::arg("target"));
     m.def("swept_bounds", &py_swept_bounds, nb::arg("boxes"));
     m.def("fast_boxes", &py_fast_boxes, nb::arg("state"), nb::arg("dt"), nb::arg("box_frame"), nb::arg("radius"),
@@ -449,9 +537,15 @@ NB_MODULE(_core, m) {
           nb::arg("X_CS"), nb::arg("half"));
     m.def("frame_poses", &py_frame_poses, nb::arg("state"), nb::arg("dt"), nb::arg("frames"), nb::arg("taus"));
     m.def("candidate_pairs", &py_candidate_pairs, nb::arg("bounds"), nb::arg("n_fast"), nb::arg("frame"),
-          nb::arg("frame_body"), nb::arg("frame_flags"));
+          nb::arg("frame_body"), nb::arg("self_collides"), nb::arg("group"), nb::arg("mask"), nb::arg("filter_mode"));
+    m.def("path_rows_between", &py_path_rows_between, nb::arg("poses0"), nb::arg("poses1"), nb::arg("boxes"),
+          nb::arg("box_frame"), nb::arg("X_CS"), nb::arg("half"));
+    m.def("layouts", &layouts);
+    m.def("row_poses", &py_row_poses, nb::arg("rows"), nb::arg("taus"));
+    m.def("window_rows", &py_window_rows, nb::arg("rows"), nb::arg("lo"), nb::arg("hi"));
     m.def("fit_path", &py_fit_path, nb::arg("box"), nb::arg("lo"), nb::arg("hi"));
     m.def("first_touches", &py_first_touches, nb::arg("rows"), nb::arg("pairs"), nb::arg("fit_tolerance"),
           nb::arg("tolerances"));
     m.def("path_contact", &py_path_contact, nb::arg("boxes"), nb::arg("lo"), nb::arg("hi"), nb::arg("tolerances"));
+    m.def("as_builtin", &as_builtin, nb::arg("fn"), nb::arg("name"), nb::arg("doc"));
 }

@@ -8,6 +8,9 @@ namespace boxccd {
 
 namespace {
 
+using fs = FrameState;
+using pr = PathRow;
+
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 constexpr double kPi = 3.14159265358979323846;
 constexpr double kAngularMotionThreshold = 0.25 * kPi;  // Bullet's clamp
@@ -19,7 +22,7 @@ constexpr double kFitErrorPerCubedAngle = 2.0 * 1.7320508075688772 / 216.0;
 
 // Farthest point of the box from its frame's origin.
 double reach_radius(const double *box) {
-    const double *X_CS = box + 23, *h = box + 39;
+    const double *X_CS = box + pr::kBoxInFrame, *h = box + pr::kHalfExtents;
     return std::sqrt(X_CS[3] * X_CS[3] + X_CS[7] * X_CS[7] + X_CS[11] * X_CS[11]) +
            std::sqrt(h[0] * h[0] + h[1] * h[1] + h[2] * h[2]);
 }
@@ -31,8 +34,9 @@ struct Pose {
 
 // Pose of the box at tau: X(tau) = [Rot(axis, (tau - 1) angle) R1, p1 + (tau - 1) dv] X_CS.
 Pose box_pose(const double *b, double tau) {
-    const double *X1 = b, *dv = b + 16, *k = b + 19, *X_CS = b + 23;
-    const double th = (tau - 1.0) * b[22], s = std::sin(th), c = 1.0 - std::cos(th);
+    const double *X1 = b + pr::kPoseAfter, *dv = b + pr::kDisplacement, *k = b + pr::kAxis,
+                 *X_CS = b + pr::kBoxInFrame;
+    const double th = (tau - 1.0) * b[pr::kAngle], s = std::sin(th), c = 1.0 - std::cos(th);
     double K[3][3] = {{0, -k[2], k[1]}, {k[2], 0, -k[0]}, {-k[1], k[0], 0}};
     double Q[3][3];  // I + s K + c K^2
     for (int i = 0; i < 3; ++i)
@@ -76,15 +80,25 @@ double overlap_on(const double u[3], const Pose &A, const double *ha, const Pose
 
 }  // namespace
 
-double path_depth(const double *box_a, const double *box_b, double tau) {
+double path_separation(const double *box_a, const double *box_b, double tau, double *axis) {
     const Pose A = box_pose(box_a, tau), B = box_pose(box_b, tau);
-    const double *ha = box_a + 39, *hb = box_b + 39;
+    const double *ha = box_a + pr::kHalfExtents, *hb = box_b + pr::kHalfExtents;
     const double d[3] = {B.c[0] - A.c[0], B.c[1] - A.c[1], B.c[2] - A.c[2]};
     double depth = std::numeric_limits<double>::infinity();
+    const auto consider = [&](const double u[3]) {
+        const double o = overlap_on(u, A, ha, B, hb, d);
+        if (o < depth) {
+            depth = o;
+            if (axis) {  // oriented from A towards B
+                const double sgn = u[0] * d[0] + u[1] * d[1] + u[2] * d[2] < 0.0 ? -1.0 : 1.0;
+                for (int k = 0; k < 3; ++k) axis[k] = sgn * u[k];
+            }
+        }
+    };
     for (int i = 0; i < 3; ++i) {  // face normals (the boxes are rigid: axes are orthonormal)
         const double ua[3] = {A.R[0][i], A.R[1][i], A.R[2][i]}, ub[3] = {B.R[0][i], B.R[1][i], B.R[2][i]};
-        depth = std::fmin(depth, overlap_on(ua, A, ha, B, hb, d));
-        depth = std::fmin(depth, overlap_on(ub, A, ha, B, hb, d));
+        consider(ua);
+        consider(ub);
     }
     for (int i = 0; i < 3; ++i)
         for (int j = 0; j < 3; ++j) {
@@ -93,15 +107,19 @@ double path_depth(const double *box_a, const double *box_b, double tau) {
             const double n = std::sqrt(u[0] * u[0] + u[1] * u[1] + u[2] * u[2]);
             if (!(n > 1e-9)) continue;  // parallel edges give no axis
             for (double &x : u) x /= n;
-            depth = std::fmin(depth, overlap_on(u, A, ha, B, hb, d));
+            consider(u);
         }
     return depth;
 }
 
+double path_depth(const double *box_a, const double *box_b, double tau) {
+    return path_separation(box_a, box_b, tau, nullptr);
+}
+
 void swept_bounds(const double *box, double *lo, double *hi) {
-    const double *h = box + 39;
+    const double *h = box + pr::kHalfExtents;
     const double r = reach_radius(box);
-    const double q = 0.25 * box[22];
+    const double q = 0.25 * box[pr::kAngle];
     const double sag = r * q * q / 8.0 + 1e-9;
     for (int i = 0; i < 3; ++i) {
         lo[i] = std::numeric_limits<double>::infinity();
@@ -135,7 +153,7 @@ double first_depth(const double *box_a, const double *box_b, double tau_from, do
 }
 
 double step_reach(const double *state, double dt, double radius) {
-    const double *v = state + 7, *w = state + 10;
+    const double *v = state + fs::kVelocity, *w = state + fs::kAngularVelocity;
     return (std::sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]) +
             std::sqrt(w[0] * w[0] + w[1] * w[1] + w[2] * w[2]) * radius) * dt;
 }
@@ -146,30 +164,85 @@ double bullet_step_angle(double speed, double dt) {
     return 2.0 * std::atan(a / kAngularMotionThreshold * std::tan(0.5 * kAngularMotionThreshold));
 }
 
-void path_row(const double *state, double dt, const double *X_CS, const double *half, double *row) {
-    const double *q = state + 3, *v = state + 7, *w = state + 10;
+namespace {
+
+// Rotation matrix of a quaternion x y z w (normalised here).
+void quat_matrix(const double *q, double R[3][3]) {
     const double qq = q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3];
     const double s2 = qq > 0.0 ? 2.0 / qq : 0.0;  // the products below carry the 2 and the normalisation
     const double x = q[0], y = q[1], z = q[2], r = q[3];
-    const double R[3][3] = {{1 - s2 * (y * y + z * z), s2 * (x * y - z * r), s2 * (x * z + y * r)},
+    const double M[3][3] = {{1 - s2 * (y * y + z * z), s2 * (x * y - z * r), s2 * (x * z + y * r)},
                             {s2 * (x * y + z * r), 1 - s2 * (x * x + z * z), s2 * (y * z - x * r)},
                             {s2 * (x * z - y * r), s2 * (y * z + x * r), 1 - s2 * (x * x + y * y)}};
+    std::copy(&M[0][0], &M[0][0] + 9, &R[0][0]);
+}
+
+// The row's frame after the step (pose1: position, quaternion), box and extents.
+void row_frame_and_box(const double *pose1, const double *X_CS, const double *half, double *row) {
+    double R[3][3];
+    quat_matrix(pose1 + 3, R);
+    double *X1 = row + pr::kPoseAfter;
     for (int i = 0; i < 3; ++i) {
-        for (int j = 0; j < 3; ++j) row[4 * i + j] = R[i][j];
-        row[4 * i + 3] = state[i];
-        row[12 + i] = 0.0;
-        row[16 + i] = v[i] * dt;
+        for (int j = 0; j < 3; ++j) X1[4 * i + j] = R[i][j];
+        X1[4 * i + 3] = pose1[i];
+        X1[12 + i] = 0.0;
     }
-    row[15] = 1.0;
+    X1[15] = 1.0;
+    std::copy(X_CS, X_CS + 16, row + pr::kBoxInFrame);
+    std::copy(half, half + 3, row + pr::kHalfExtents);
+}
+
+}  // namespace
+
+void path_row(const double *state, double dt, const double *X_CS, const double *half, double *row) {
+    const double *v = state + fs::kVelocity, *w = state + fs::kAngularVelocity;
+    row_frame_and_box(state + fs::kPosition, X_CS, half, row);
+    for (int i = 0; i < 3; ++i) row[pr::kDisplacement + i] = v[i] * dt;
     const double speed = std::sqrt(w[0] * w[0] + w[1] * w[1] + w[2] * w[2]);
-    for (int i = 0; i < 3; ++i) row[19 + i] = speed > 0.0 ? w[i] / speed : 0.0;
-    row[22] = bullet_step_angle(speed, dt);
-    std::copy(X_CS, X_CS + 16, row + 23);
-    std::copy(half, half + 3, row + 39);
+    for (int i = 0; i < 3; ++i) row[pr::kAxis + i] = speed > 0.0 ? w[i] / speed : 0.0;
+    row[pr::kAngle] = bullet_step_angle(speed, dt);
+}
+
+void path_row_between(const double *pose0, const double *pose1, const double *X_CS, const double *half, double *row) {
+    row_frame_and_box(pose1, X_CS, half, row);
+    for (int i = 0; i < 3; ++i) row[pr::kDisplacement + i] = pose1[i] - pose0[i];
+    // The turn q1 q0^-1 (x y z w), taken the short way round (w >= 0).
+    const double *a = pose1 + 3, *b = pose0 + 3;
+    double t[4] = {b[3] * a[0] - a[3] * b[0] - (a[1] * b[2] - a[2] * b[1]),
+                   b[3] * a[1] - a[3] * b[1] - (a[2] * b[0] - a[0] * b[2]),
+                   b[3] * a[2] - a[3] * b[2] - (a[0] * b[1] - a[1] * b[0]),
+                   a[3] * b[3] + a[0] * b[0] + a[1] * b[1] + a[2] * b[2]};
+    if (t[3] < 0.0)
+        for (double &x : t) x = -x;
+    const double sin_half = std::sqrt(t[0] * t[0] + t[1] * t[1] + t[2] * t[2]);
+    for (int i = 0; i < 3; ++i) row[pr::kAxis + i] = sin_half > 0.0 ? t[i] / sin_half : 0.0;
+    row[pr::kAngle] = 2.0 * std::atan2(sin_half, t[3]);
+}
+
+void row_pose(const double *row, double tau, double *pose) {
+    const Pose P = box_pose(row, tau);
+    for (int i = 0; i < 3; ++i) {
+        for (int j = 0; j < 3; ++j) pose[4 * i + j] = P.R[i][j];
+        pose[4 * i + 3] = P.c[i];
+        pose[12 + i] = 0.0;
+    }
+    pose[15] = 1.0;
+}
+
+void window_row(const double *row, double lo, double hi, double *out) {
+    std::copy(row, row + pr::kSize, out);
+    // The frame at hi: the row's frame after the step, turned and moved back by (1 - hi).
+    double frame[pr::kSize];
+    std::copy(row, row + pr::kSize, frame);
+    const double identity[16] = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1};
+    std::copy(identity, identity + 16, frame + pr::kBoxInFrame);
+    row_pose(frame, hi, out + pr::kPoseAfter);
+    for (int i = 0; i < 3; ++i) out[pr::kDisplacement + i] = (hi - lo) * row[pr::kDisplacement + i];
+    out[pr::kAngle] = (hi - lo) * row[pr::kAngle];
 }
 
 void frame_pose(const double *state, double dt, double tau, double *pose) {
-    const double *q1 = state + 3, *v = state + 7, *w = state + 10;
+    const double *q1 = state + fs::kOrientation, *v = state + fs::kVelocity, *w = state + fs::kAngularVelocity;
     const double speed = std::sqrt(w[0] * w[0] + w[1] * w[1] + w[2] * w[2]);
     const double half_angle = 0.5 * (tau - 1.0) * bullet_step_angle(speed, dt);
     const double s = speed > 0.0 ? std::sin(half_angle) / speed : 0.0, c = std::cos(half_angle);
@@ -194,12 +267,12 @@ double fit_path(const double *box, double lo, double hi, double *coeffs) {
             coeffs[16 + e] = i == 3 ? 0.0 : -3.0 * x[0] + 4.0 * x[1] - x[2];
             coeffs[32 + e] = i == 3 ? 0.0 : 2.0 * x[0] - 4.0 * x[1] + 2.0 * x[2];
         }
-    const double phi = box[22] * (hi - lo);
+    const double phi = box[pr::kAngle] * (hi - lo);
     return kFitErrorPerCubedAngle * phi * phi * phi;
 }
 
 int fit_pieces(const double *box, double fit_tolerance) {
-    const double *h = box + 39, phi = box[22];
+    const double *h = box + pr::kHalfExtents, phi = box[pr::kAngle];
     const double err1 = kFitErrorPerCubedAngle * phi * phi * phi * reach_radius(box);
     const double allowed = fit_tolerance * std::min({h[0], h[1], h[2]});
     int pieces = 1;
@@ -219,7 +292,7 @@ struct FittedBox {
         const double err = fit_path(box, t_lo, t_hi, coeffs), r = reach_radius(box);
         const double grow = err * r / (1.0 - err) + extra * r;
         for (int i = 0; i < 3; ++i) {
-            hi[i] = box[39 + i] + grow;
+            hi[i] = box[pr::kHalfExtents + i] + grow;
             lo[i] = -hi[i];
         }
     }
@@ -259,7 +332,7 @@ Hit path_contact(const double *box_a, const double *box_b, double lo, double hi,
 
 std::vector<std::pair<int64_t, int64_t>> candidate_pairs(const double *bounds, int64_t n, int64_t n_fast,
                                                          const int64_t *frame, const int64_t *frame_body,
-                                                         const uint8_t *frame_flags) {
+                                                         const uint8_t *self_collides, const FrameFilter &filter) {
     std::vector<std::pair<int64_t, int64_t>> out;
     for (int64_t i = 0; i < n_fast; ++i)
         for (int64_t j = 0; j < n; ++j) {
@@ -270,8 +343,8 @@ std::vector<std::pair<int64_t, int64_t>> candidate_pairs(const double *bounds, i
                 continue;
             const int64_t fi = frame[i], fj = frame[j];
             if (fi == fj) continue;  // boxes of one link never collide with each other
-            if ((frame_flags[fi] & 1) && (frame_flags[fj] & 1)) continue;
-            if (frame_body[fi] == frame_body[fj] && !(frame_flags[fi] & 2)) continue;
+            if (frame_body[fi] == frame_body[fj] && !self_collides[fi]) continue;
+            if (!filter.allowed(fi, fj)) continue;
             out.emplace_back(i, j);
         }
     return out;

@@ -19,14 +19,28 @@
 
 namespace boxccd {
 
-// A frame's state after the step, as 13 doubles: position (3), orientation
-// quaternion x y z w (4, pybullet's order), v (3), w (3).
-constexpr int kFrameStateSize = 13;
+// A frame's state after the step: the columns of one row of doubles (the Python
+// side names the same columns: bullet_boxccd/pybullet_ccd/layout.py).
+struct FrameState {
+    static constexpr int kPosition = 0;          // (3) centre of mass, world
+    static constexpr int kOrientation = 3;       // (4) quaternion x y z w, pybullet's order
+    static constexpr int kVelocity = 7;          // (3) linear, world
+    static constexpr int kAngularVelocity = 10;  // (3) world
+    static constexpr int kSize = 13;
+};
+constexpr int kFrameStateSize = FrameState::kSize;
 
-// One box on its path, as 42 doubles: X_W1 (4x4 row-major, the frame after the
-// step), dv (3, displacement over the step), axis (3, unit), angle (turned over
-// the step), X_CS (4x4, the box in its frame), half extents (3).
-constexpr int kPathBoxSize = 42;
+// One box on its path over the step: the columns of one row of doubles.
+struct PathRow {
+    static constexpr int kPoseAfter = 0;      // (16) X_W1, the frame after the step, 4x4 row-major
+    static constexpr int kDisplacement = 16;  // (3) of the frame's origin over the step
+    static constexpr int kAxis = 19;          // (3) unit, world: the fixed axis the frame turns about
+    static constexpr int kAngle = 22;         // (1) turned over the step
+    static constexpr int kBoxInFrame = 23;    // (16) X_CS, the box in its frame, 4x4 row-major
+    static constexpr int kHalfExtents = 39;   // (3)
+    static constexpr int kSize = 42;
+};
+constexpr int kPathBoxSize = PathRow::kSize;
 
 // The angle Bullet turns a body in a step of dt at angular speed `speed`.
 double bullet_step_angle(double speed, double dt);
@@ -38,12 +52,27 @@ double step_reach(const double *state, double dt, double radius);
 // The path row of a box at X_CS (4x4) with half extents `half` on a frame with `state`.
 void path_row(const double *state, double dt, const double *X_CS, const double *half, double *row);
 
+// The path row of a box on a frame that went from pose0 to pose1 (position (3) and
+// quaternion x y z w (4) each) over the step, moving linearly and turning about a
+// fixed axis by the smaller angle: a kinematic body the user moved between steps.
+void path_row_between(const double *pose0, const double *pose1, const double *X_CS, const double *half, double *row);
+
+// The pose (4x4 row-major) of a path row's box at tau.
+void row_pose(const double *row, double tau, double *pose);
+
+// The path row over the window [lo, hi] of the step, on its own tau in [0, 1].
+void window_row(const double *row, double lo, double hi, double *out);
+
 // The frame's pose at tau: position (3) and unit quaternion x y z w (4).
 void frame_pose(const double *state, double dt, double tau, double *pose);
 
 // Separating-axis overlap depth at step fraction tau: > 0 overlapping by that
 // much, <= 0 apart (the gap, negated, along the best of the 15 axes).
 double path_depth(const double *box_a, const double *box_b, double tau);
+
+// path_depth, with the axis that gives it (unit, from A towards B): for an overlap,
+// the direction in which B is pushed out along the least overlap.
+double path_separation(const double *box_a, const double *box_b, double tau, double *axis);
 
 // The first tau in (tau_from, 1] at which the depth reaches `target`, NaN if it
 // does not. A geometric look-ahead (offsets 2^-k of the rest of the step) finds
@@ -80,14 +109,26 @@ double first_touch(const double *box_a, const double *box_b, double fit_toleranc
 // geometry (one fit over the window, inflated likewise); t is a step fraction.
 Hit path_contact(const double *box_a, const double *box_b, double lo, double hi, const Tolerances &tol);
 
+// pybullet's collision filter test of two frames' groups and masks (pair rules
+// are applied by the caller): mode 0 "A's group & B's mask, and B's group & A's
+// mask", mode 1 (pybullet's default) "... or ...".
+struct FrameFilter {
+    const int64_t *group, *mask;
+    int mode;
+    bool allowed(int64_t a, int64_t b) const {
+        const bool ab = (group[a] & mask[b]) != 0, ba = (group[b] & mask[a]) != 0;
+        return mode == 1 ? (ab || ba) : (ab && ba);
+    }
+};
+
 // Pairs of the n boxes whose swept bounds meet, for the broad phase: bounds is
 // (n, 6), lo then hi of each box (swept_bounds). Boxes 0 .. n_fast - 1 are the
 // fast ones: every pair has a fast first member, and a pair of fast boxes
 // appears once. frame[i] is box i's frame; boxes of one frame never pair, nor
-// boxes of two static frames, nor boxes of one body unless it self-collides
-// (flags[frame]: bit 0 static, bit 1 self-collides).
+// boxes of one body unless it self-collides (self_collides[frame]), nor frames
+// the filter keeps apart.
 std::vector<std::pair<int64_t, int64_t>> candidate_pairs(const double *bounds, int64_t n, int64_t n_fast,
                                                          const int64_t *frame, const int64_t *frame_body,
-                                                         const uint8_t *frame_flags);
+                                                         const uint8_t *self_collides, const FrameFilter &filter);
 
 }  // namespace boxccd
