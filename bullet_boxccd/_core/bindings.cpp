@@ -542,6 +542,7 @@ NB_MODULE(_core, m) {
           nb::arg("box_frame"), nb::arg("X_CS"), nb::arg("half"));
     m.def("layouts", &layouts);
     m.def("row_poses", &py_row_poses, nb::arg("rows"), nb::arg("taus"));
+    m.def("bullet_step_angle", &bullet_step_angle, nb::arg("speed"), nb::arg("dt"));
     m.def("window_rows", &py_window_rows, nb::arg("rows"), nb::arg("lo"), nb::arg("hi"));
     m.def("fit_path", &py_fit_path, nb::arg("box"), nb::arg("lo"), nb::arg("hi"));
     m.def("first_touches", &py_first_touches, nb::arg("rows"), nb::arg("pairs"), nb::arg("fit_tolerance"),

@@ -37,19 +37,25 @@ from .. import _core
 from ._hooks import raw
 from .events import CCDEvent
 from .layout import ANGULAR_VELOCITY, PATH_ROW, POSE, VELOCITY
-from .world import FREE
+from .world import FREE, STATIC
 
 __all__ = ["Impacts"]
 
-_HOLD_FRACTION = 0.01  # a stop this close to the start of a touching pair's window: pybullet left it approaching
 _MOVING, _STOPPED, _CARRIED = 0, 1, 2
+# A pair touching when its window begins acts once it is deeper by this fraction of the
+# thinner box's half extent: less is the creep of a contact pybullet holds.
+_CREEP = 0.02
+# A pair pressing in again after this many collisions in one step is held where it is.
+_LEAKS = 4
 _IDENTITY = np.eye(4).reshape(-1)
 
 
 class _Paths:
-    """The frames of a sweep on their effective paths: Bullet's, or stopped at a time, or
-    carried from a time by another frame's motion. Rows are the sweep's path rows,
-    rewritten as paths change; all are over the whole step (tau in [0, 1])."""
+    """The frames of a sweep on their effective paths through the step: Bullet's; or a
+    continuation from a time with new velocities (after a collision the plugin
+    resolved); or stopped at a time; or carried from a time by another frame's motion.
+    Rows are the sweep's path rows, rewritten as paths change; all are over the whole
+    step (tau in [0, 1]), valid from the frame's last change on."""
 
     def __init__(self, sw, tables, state, dt, kinematic):
         self.tables, self.state, self.dt = tables, state, dt
@@ -62,9 +68,13 @@ class _Paths:
         self.status = dict.fromkeys(self.rows_of, _MOVING)
         self.version = dict.fromkeys(self.rows_of, 0)
         self.since = dict.fromkeys(self.rows_of, 0.0)
+        self.motion = {}  # frame -> (13,) state after the step of its continuation (else Bullet's: state.rows)
         self.stop_time = {}  # stopped frame -> tau
+        self.frozen = {}  # stopped frame -> (4, 4) centre-of-mass pose
         self.carry = {}  # carried frame -> (carrier's frame row (42,), rel (4, 4): CoM in carrier frame)
         self.carried_from = {}  # carried frame -> the frame that pushed it
+        self.velocity = {}  # frame -> (v, w) it leaves the step with, where the plugin changed them
+        self.collisions = {}  # (frame, frame) -> collisions resolved for the pair in this step
         self.kinematic = kinematic
 
     def driver(self, f):
@@ -77,25 +87,56 @@ class _Paths:
         """f moves on regardless: a kinematic frame, or one carried by it."""
         return f in self.kinematic or self.status.get(f) == _CARRIED
 
+    def free(self, f) -> bool:
+        """A free body that the plugin may stop, restart or push (not carried already)."""
+        return self.tables.kind[f] == FREE and f not in self.kinematic and self.status.get(f) != _CARRIED
+
     def stoppable(self, f) -> bool:
-        return self.tables.kind[f] == FREE and f not in self.kinematic and self.status.get(f) == _MOVING
+        return self.free(f) and self.status.get(f) == _MOVING
+
+    def state_row(self, f):
+        return self.motion.get(f, self.state.rows[f])
+
+    def twist(self, f):
+        """(v, w) of frame f from now on (what it leaves the step with)."""
+        if f in self.velocity:
+            return self.velocity[f]
+        row = self.state_row(f)
+        return row[VELOCITY].copy(), row[ANGULAR_VELOCITY].copy()
 
     def com(self, f, tau) -> np.ndarray:
         """(4, 4) centre-of-mass pose of frame f at tau on its effective path."""
         if self.status.get(f) == _CARRIED:
             carrier, rel = self.carry[f]
             return _core.row_poses(carrier[None], np.array([tau]))[0] @ rel
-        t = self.stop_time.get(f, tau)
-        p = _core.frame_poses(self.state.rows, self.dt, np.array([f], dtype=np.int64), np.array([t]))[0]
+        if self.status.get(f) == _STOPPED and tau >= self.stop_time[f]:
+            return self.frozen[f]
+        p = _core.frame_poses(self.state_row(f)[None], self.dt, np.zeros(1, dtype=np.int64), np.array([tau]))[0]
         return _pose4(p)
 
     def stop(self, f, tau):
-        """Frame f stands still from tau on."""
+        """Frame f stands still from tau on (with the velocity it had)."""
+        self.frozen[f] = self.com(f, tau)
+        self.velocity.setdefault(f, self.twist(f))
         for r in self.rows_of[f]:
             X = _core.row_poses(self.rows[[r]], np.array([tau]))[0]
             self.rows[r] = _still_row(X, self.rows[r])
         self.stop_time[f] = tau
         self._changed(f, _STOPPED, tau)
+
+    def restart(self, f, tau, v, w):
+        """Frame f moves on from tau with velocities v, w (Bullet's rule: linear, about a
+        fixed axis)."""
+        com = self.com(f, tau)
+        end = _advance(com, v, w, self.dt, 1.0 - tau)
+        self.motion[f] = np.concatenate([_pose7(end), v, w])
+        self.velocity[f] = (np.asarray(v, float), np.asarray(w, float))
+        boxes = np.array([self.box[r] for r in self.rows_of[f]], dtype=np.int64)
+        self.rows[self.rows_of[f]] = _core.path_rows(self.motion[f][None], self.dt, boxes,
+                                                     np.zeros(len(self.tables.box_frame), dtype=np.int64),
+                                                     self.tables.X_CS, self.tables.half)
+        self.stop_time.pop(f, None)
+        self._changed(f, _MOVING, tau)
 
     def carried_by(self, f, row_k, tau, com=None):
         """Frame f moves with the frame of path row ``row_k`` from tau on (from centre-of-mass
@@ -111,6 +152,7 @@ class _Paths:
                 self.rows[r, PATH_ROW[name]] = carrier[PATH_ROW[name]]
             self.rows[r, PATH_ROW["box_in_frame"]] = (Finv @ com @ X_CS).reshape(-1)
         self.carry[f] = (carrier, Finv @ com)
+        self.stop_time.pop(f, None)
         self._changed(f, _CARRIED, tau)
 
     def _changed(self, f, status, tau):
@@ -128,53 +170,65 @@ class Impacts:
 
     def resolve(self, sw, jw, tables, state, dt, user_moved, gravity):
         """Events of the step's sweep ``sw`` and of the kinematic jumps' sweep ``jw`` (either
-        may be None), with the rewinds and pushes applied. Returns (events, tau_world):
-        tau_world is the earliest rewind (1 if none), where the exact-time mode stops the
-        world. ``user_moved``: frames the user teleported since the last step (never
-        pushed: their pose is the user's)."""
+        may be None), with the plugin's actions applied to pybullet. Returns (events,
+        tau_world): tau_world is the earliest action (1 if none), where the exact-time mode
+        stops the world. ``user_moved``: frames the user teleported since the last step
+        (never pushed: their pose is the user's)."""
         kinematic = set(state.kinematic)
-        events, v_new = [], {}
+        events = []
         pushed = self._jumps(jw, tables, state, dt, kinematic, user_moved, events) if jw is not None else {}
-        paths = None
-        if sw is not None and sw.hits:
-            paths = _Paths(sw, tables, state, dt, kinematic)
-        for d, (k, start) in pushed.items():  # then it rides its kinematic body through the step
+        paths = _Paths(sw, tables, state, dt, kinematic) if sw is not None and sw.hits else None
+        for d, (k, start, v) in pushed.items():  # then it rides its kinematic body through the step
             row_k = self._frame_row(tables, state, dt, k)
             if paths is not None and d in paths.rows_of:
                 paths.carried_by(d, row_k, 0.0, com=start)
                 paths.carried_from[d] = k
+                paths.velocity[d] = (v, np.zeros(3))
             else:
-                self._place(tables, state, d, _pose7(_carry(row_k, 0.0, start)), state.rows[d, VELOCITY],
-                            state.rows[d, ANGULAR_VELOCITY])
+                self._place(tables, state, d, _pose7(_carry(row_k, 0.0, start)), v, np.zeros(3))
+        tau_world = 1.0
         if paths is not None:
-            self._time_order(paths, sw, user_moved, events, v_new)
+            tau_world = self._time_order(paths, sw, user_moved, events)
+            self._apply(paths, tables, state, dt, gravity, tau_world)
         self.stats.contacts += len(events)
-        stop = dict(paths.stop_time) if paths else {}
-        tau_world = min(stop.values(), default=1.0)
-        if self.exact_time and stop:
-            # The whole world goes to the earliest contact: every free body not carried.
-            carried = set(paths.carry)
-            stop = {f: tau_world for f in np.flatnonzero(tables.kind == FREE).tolist() if f not in carried
-                    and f not in pushed}
-            state.read_poses(state.stale(sorted(stop)))
-        self._rewind(tables, state, dt, stop, v_new, gravity)
-        for d in paths.carry if paths is not None else ():
-            self._place(tables, state, d, _pose7(paths.com(d, 1.0)), state.rows[d, VELOCITY],
-                        state.rows[d, ANGULAR_VELOCITY])
         return events, tau_world
 
+    def _apply(self, paths, tables, state, dt, gravity, tau_world):
+        """Put the frames whose paths changed where their paths end, with their velocities;
+        in exact-time mode every free body at tau_world instead."""
+        changed = [f for f in paths.status if paths.version[f] > 0]
+        if self.exact_time and tau_world < 1.0:
+            carried = set(paths.carry)
+            free = [f for f in np.flatnonzero(tables.kind == FREE).tolist() if f not in carried]
+            state.read_poses(state.stale(free))
+            for f in free:
+                in_paths = f in paths.status
+                pose = _pose7(paths.com(f, tau_world)) if in_paths else _core.frame_poses(
+                    state.rows, dt, np.array([f], dtype=np.int64), np.array([tau_world]))[0]
+                v, w = paths.twist(f) if in_paths else (state.rows[f, VELOCITY], state.rows[f, ANGULAR_VELOCITY])
+                # The rest of the step is simulated again and adds its gravity again.
+                self._place(tables, state, f, pose, v - gravity * (1.0 - tau_world) * dt, w)
+            self.stats.rewinds += len(free)
+            changed = [f for f in changed if f in carried]
+        for f in changed:
+            v, w = paths.twist(f)
+            self._place(tables, state, f, _pose7(paths.com(f, 1.0)), v, w)
+            self.stats.rewinds += paths.status[f] == _STOPPED
+
     # -------------------------------------------------------- time order
-    def _time_order(self, paths, sw, user_moved, events, v_new):
+    def _time_order(self, paths, sw, user_moved, events):
         """Take the contacts in time order, acting where pybullet would go wrong, and sweep
-        again the pairs of every body whose path changed."""
+        again the pairs of every body whose path changed. Returns the first action's time
+        (1 if none): exact-time mode stops there."""
         pairs_of = {}
         for q, (i, j) in enumerate(sw.pairs.tolist()):
             for r in (i, j):
                 pairs_of.setdefault(paths.frame[r], []).append(q)
+        index = sw.pair_index
         heap = []
         for i, j, tau in sw.hits:
-            q = sw.pair_index[(i, j)]
-            self._queue(heap, paths, q, i, j, 0.0, tau)
+            self._queue(heap, paths, index[(i, j)], i, j, 0.0, tau)
+        first, budget = 1.0, 8 * len(paths.status) + 8  # a cap on actions: each one changes a path
         while heap:
             tau_r, _, q, i, j, versions, info = heapq.heappop(heap)
             fa, fb = paths.frame[i], paths.frame[j]
@@ -184,13 +238,26 @@ class Impacts:
                 if touch is not None:
                     self._queue(heap, paths, q, i, j, since, touch)
                 continue
-            changed = self._act(paths, i, j, tau_r, info, user_moved, events, v_new)
+            if info["action"] is not None and budget <= 0:
+                info["action"] = None  # out of budget: pybullet's, from here on
+            changed = self._act(paths, i, j, tau_r, info, user_moved, events)
+            if info["action"] == "collide" and not changed and budget > 0:
+                budget -= 1  # the pressing point was not approaching (yet): look again, from here on
+                self._queue(heap, paths, q, i, j, tau_r, tau_r)
+            if changed:
+                budget -= 1
+                first = min(first, tau_r)
+                if self.exact_time:
+                    break
             for f in changed:
                 for q2 in pairs_of.get(f, ()):
                     i2, j2 = sw.pairs[q2]
+                    if paths.status[paths.frame[i2]] == _STOPPED and paths.status[paths.frame[j2]] == _STOPPED:
+                        continue  # two bodies standing still: nothing more happens
                     touch = self._first_touch(paths, i2, j2, tau_r)
                     if touch is not None:
                         self._queue(heap, paths, q2, i2, j2, tau_r, touch)
+        return first
 
     def _first_touch(self, paths, i, j, lo):
         """The first touch (a step fraction) of rows i and j over [lo, 1], or None."""
@@ -211,7 +278,7 @@ class Impacts:
 
     def _judge(self, paths, i, j, lo, touch):
         """What the pair (rows i, j) needs: {"act_at": tau, "action": None | "stop" |
-        "push", "initial", "touch", "window"}."""
+        "collide" | "push", "initial", "touch", "window", "contact"}."""
         fa, fb = paths.frame[i], paths.frame[j]
         w = _core.window_rows(paths.rows[[i, j]], lo, 1.0)
         s_touch = (touch - lo) / (1.0 - lo)
@@ -221,39 +288,45 @@ class Impacts:
                 "contact": c}
         if c is None:  # the fit's allowance touched, the boxes did not: nothing happened
             return info
-        push_a = paths.pushes(fa) and paths.stoppable(fb)
-        push_b = paths.pushes(fb) and paths.stoppable(fa)
+        push_a = paths.pushes(fa) and paths.free(fb)
+        push_b = paths.pushes(fb) and paths.free(fa)
         if push_a or push_b:
             normal = _normal_at_end(w, s_touch, c)
             if not _overtaken(w if push_a else w[::-1], normal if push_a else -normal, self.penetration):
                 return info
             action = "push"
+        elif initial and (paths.stoppable(fa) or paths.stoppable(fb)) and _STOPPED not in (
+                paths.status.get(fa), paths.status.get(fb)):
+            action = "collide"  # touching when the window began, and pybullet's solve left it pressing
         elif paths.stoppable(fa) or paths.stoppable(fb):
-            action = "stop"
+            action = "stop"  # a strike, or pressing on a body that stands still from now on
         else:
             return info
-        d0 = float(_core.path_depth(w, np.zeros(1))[0]) if initial else 0.0
-        target = (max(d0, 0.0) + self.penetration) if initial else self.penetration
-        if action == "stop" and not _goes_wrong(w, s_touch, c, target):
+        target = self.penetration
+        if initial:  # pressing deeper than a creep (a box pivoting on a corner sinks that corner slowly)
+            thin = min(w[0, PATH_ROW["half_extents"]].min(), w[1, PATH_ROW["half_extents"]].min())
+            d0 = float(_core.path_depth(w, np.zeros(1))[0])
+            target = max(d0, 0.0) + max(self.penetration, _CREEP * thin)
+        if action != "push" and not _goes_wrong(w, s_touch, c, target):
             return info
         s_act = _core.first_depth(w, s_touch, target)
         if np.isnan(s_act):
-            if action == "stop":  # never as deep as that: a graze
+            if action != "push":  # never as deep as that: a graze
                 return info
             s_act = s_touch
         info.update(action=action, act_at=lo + s_act * (1.0 - lo), pusher_first=push_a)
         return info
 
-    def _act(self, paths, i, j, tau, info, user_moved, events, v_new):
+    def _act(self, paths, i, j, tau, info, user_moved, events):
         """Report the contact and act on it; returns the frames whose paths changed."""
-        tables, state = paths.tables, paths.state
+        tables = paths.tables
         fa, fb = paths.frame[i], paths.frame[j]
         lo, hi = info["window"]
         c = info["contact"]
         if c is None:
             return []
         t_event = lo + c.t * (hi - lo)
-        changed, acted = [], False
+        changed = []
         if info["action"] == "push":
             k, d = (fa, fb) if info["pusher_first"] else (fb, fa)
             row_k = paths.rows[i if info["pusher_first"] else j]
@@ -261,20 +334,89 @@ class Impacts:
                 paths.carried_from[d] = k
                 normal = _moved_with(row_k, tau, c.normal if info["pusher_first"] else -c.normal)
                 paths.carried_by(d, row_k, tau)
-                driver = paths.driver(k)
-                self._push_velocity(tables, state, paths.dt, d, driver, paths.com(d, 1.0)[:3, 3], normal)
-                changed, acted = [d], True
+                com1 = paths.com(d, 1.0)[:3, 3]
+                v = self._push_velocity(tables, paths.state, paths.dt, d, paths.driver(k), com1, normal,
+                                        paths.twist(d)[0])
+                paths.velocity[d] = (v, paths.twist(d)[1])
+                changed = [d]
         elif info["action"] == "stop":
             for f in (fa, fb):
                 if paths.stoppable(f):
                     paths.stop(f, tau)
                     changed.append(f)
-            acted = bool(changed)
-            if acted and info["initial"] and tau - info["touch"] < _HOLD_FRACTION:
-                self._release_held(tables, state, fa, fb, c.normal, v_new)
+        elif info["action"] == "collide":
+            changed = self._collide(paths, i, j, tau)
+            count = paths.collisions[(fa, fb)] = paths.collisions.get((fa, fb), 0) + 1
+            if count > _LEAKS:  # still pressing in after that many: held where it is from now on
+                for f in (fa, fb):
+                    if paths.stoppable(f):
+                        paths.stop(f, tau)
+                        changed = sorted(set(changed) | {f})
         events.append(CCDEvent(*tables.keys[fa], *tables.keys[fb], t_event, t_event * paths.dt, c.point, c.normal,
-                               c.feature, acted, info["initial"]))
+                               c.feature, bool(changed), info["initial"]))
         return changed
+
+    # ---------------------------------------------------------- collisions
+    def _collide(self, paths, i, j, tau):
+        """Resolve a pressing contact at tau as a rigid-body collision: normal impulses
+        (pybullet's combined restitution, no friction) at the contact patch's points, each
+        time at the one approaching fastest, until none approaches (a box pivoting on one
+        corner presses in with another). The free bodies move on from tau with their new
+        velocities. Returns the frames whose paths changed."""
+        tables = paths.tables
+        fa, fb = paths.frame[i], paths.frame[j]
+        pair = paths.rows[[i, j]]
+        _, n = _core.path_separation(pair, tau)
+        A, B = _core.row_poses(pair, np.array([tau, tau]))
+        points = _patch_points(A, pair[0, PATH_ROW["half_extents"]], B, pair[1, PATH_ROW["half_extents"]], n)
+        a, b = (self._body(paths, f, tau) for f in (fa, fb))
+        e = 1.0
+        for f in (fa, fb):
+            e *= raw.getDynamicsInfo(*tables.keys[f], physicsClientId=self.cid)[5]
+        moved = False
+        for _ in range(4 * len(points)):
+            us = [float(np.dot(_point_velocity(b, x) - _point_velocity(a, x), n)) for x in points]
+            u, point = min(us), points[int(np.argmin(us))]
+            if u >= -1e-9 * (1.0 + np.linalg.norm(a["v"]) + np.linalg.norm(b["v"])):
+                break
+            ra, rb = point - a["com"], point - b["com"]
+            k = (a["inv_m"] + b["inv_m"] + float(np.dot(n, np.cross(a["inv_I"] @ np.cross(ra, n), ra)))
+                 + float(np.dot(n, np.cross(b["inv_I"] @ np.cross(rb, n), rb))))
+            if not k > 0.0:
+                break
+            J = -(1.0 + e) * u / k  # on B along n, on A against it
+            for body, r, sign in ((a, ra, -1.0), (b, rb, 1.0)):
+                body["v"] = body["v"] + sign * J * body["inv_m"] * n
+                body["w"] = body["w"] + sign * J * (body["inv_I"] @ np.cross(r, n))
+            moved = True
+        if not moved:
+            return []
+        changed = []
+        for body, f in ((a, fa), (b, fb)):
+            if body["inv_m"] > 0.0:
+                paths.restart(f, tau, body["v"], body["w"])
+                changed.append(f)
+        self.stats.held += 1
+        return changed
+
+    def _body(self, paths, f, tau):
+        """Frame f at tau for a collision: centre of mass, inverse mass and world inverse
+        inertia (0 for all but free bodies), velocities v and w, and the factor by which
+        Bullet's clamp scales its turn (above pi/4 a step)."""
+        com = paths.com(f, tau)
+        if paths.free(f):
+            info = raw.getDynamicsInfo(*paths.tables.keys[f], physicsClientId=self.cid)
+            inv_m = 1.0 / info[0] if info[0] > 0 else 0.0
+            diag = np.asarray(info[2], float)
+            inv_d = np.divide(1.0, diag, out=np.zeros(3), where=diag > 0)
+            inv_I = com[:3, :3] @ np.diag(inv_d) @ com[:3, :3].T
+            v, w = paths.twist(f)
+        else:
+            inv_m, inv_I = 0.0, np.zeros((3, 3))
+            still = paths.status.get(f) == _STOPPED or (paths.tables.kind[f] == STATIC and f not in paths.kinematic)
+            row = paths.state_row(f)
+            v, w = (np.zeros(3), np.zeros(3)) if still else (row[VELOCITY].copy(), row[ANGULAR_VELOCITY].copy())
+        return {"com": com[:3, 3], "inv_m": inv_m, "inv_I": inv_I, "v": v, "w": w, "dt": paths.dt}
 
     # -------------------------------------------------------------- jumps
     def _jumps(self, jw, tables, state, dt, kinematic, user_moved, events):
@@ -282,7 +424,7 @@ class Impacts:
         carried with it from the touch to where it stood when the step began: their path
         through the step (Bullet's, in a world where the kinematic body was already there)
         is replaced by a ride on it. Returns {frame: (kinematic frame, centre-of-mass pose
-        (4, 4) at the step's start)}."""
+        (4, 4) at the step's start, velocity)}."""
         pushed = {}
         for i, j, tau in sorted(jw.hits, key=lambda h: h[2]):
             k, d = tables.box_frame[jw.boxes[[i, j]]].tolist()
@@ -296,9 +438,9 @@ class Impacts:
             if act:
                 start = _core.frame_poses(state.rows, dt, np.array([d], dtype=np.int64), np.zeros(1))[0]
                 X = _carry(pair[0], tau, _pose4(start))
-                pushed[d] = (k, X)
                 normal = _moved_with(pair[0], tau, c.normal)
-                self._push_velocity(tables, state, dt, d, k, X[:3, 3], normal)
+                v = self._push_velocity(tables, state, dt, d, k, X[:3, 3], normal, state.rows[d, VELOCITY])
+                pushed[d] = (k, X, v)
         return pushed
 
     @staticmethod
@@ -310,63 +452,24 @@ class Impacts:
         row[PATH_ROW["box_in_frame"]] = _IDENTITY
         return row
 
-    # ------------------------------------------------------------- rewinds
-    def _rewind(self, tables, state, dt, stop, v_new, gravity):
-        if not stop:
-            return
-        frames = sorted(stop)
-        poses = _core.frame_poses(state.rows, dt, np.array(frames, dtype=np.int64), np.array([stop[f] for f in frames]))
-        for f, pose in zip(frames, poses):
-            # The reset zeroes the velocity: give back the post-solve one. In exact-time
-            # mode the rest of the step is simulated again, and it will add its gravity
-            # again: take that part out here.
-            v = v_new.get(f, state.rows[f, VELOCITY])
-            if self.exact_time:
-                v = v - gravity * (1.0 - stop[f]) * dt
-            self._place(tables, state, f, pose, v, state.rows[f, ANGULAR_VELOCITY])
-        self.stats.rewinds += len(frames)
-
-    def _release_held(self, tables, state, fa, fb, normal, v_new):
-        """A contact pybullet left approaching: resolved as a 1-D collision of the two
-        centres of mass along the normal, with pybullet's combined restitution (momentum
-        is conserved; spins are left to pybullet)."""
-        if not np.all(np.isfinite(normal)):
-            return
-        m, e, v = [], 1.0, []
-        for f in (fa, fb):
-            info = raw.getDynamicsInfo(*tables.keys[f], physicsClientId=self.cid)
-            m.append(info[0] if tables.kind[f] == FREE else np.inf)
-            e *= info[5]
-            v.append(v_new.get(f, state.rows[f, VELOCITY]))
-        approach = float(np.dot(v[1] - v[0], normal))  # < 0: B moves towards A
-        if approach >= 0.0 or not (np.isfinite(m[0]) or np.isfinite(m[1])):
-            return
-        w_a = 1.0 if not np.isfinite(m[1]) else (0.0 if not np.isfinite(m[0]) else m[1] / (m[0] + m[1]))
-        dv = (1.0 + e) * approach * normal
-        if tables.kind[fa] == FREE:
-            v_new[fa] = v[0] + w_a * dv
-        if tables.kind[fb] == FREE:
-            v_new[fb] = v[1] - (1.0 - w_a) * dv
-        self.stats.held += 1
-
     # -------------------------------------------------------------- pushes
-    def _push_velocity(self, tables, state, dt, d, k, point, normal):
-        """Give frame d (at ``point`` after the step) the normal velocity of a collision with
-        an immovable body moving as kinematic frame k moved over the whole step (its jump
-        and the step's own motion)."""
-        v_k = self._kinematic_velocity(tables, state, dt, k, point)
-        v = state.rows[d, VELOCITY].copy()
+    def _push_velocity(self, tables, state, dt, d, k, point, normal, v):
+        """Frame d's velocity after a collision, at ``point`` along ``normal`` (from the
+        pusher), with an immovable body moving as kinematic frame k moved over the whole
+        step (its jump and the step's own motion), its own velocity v before."""
+        v_k = self._kinematic_velocity(state, dt, k, point)
+        v = np.array(v, float)
         if np.all(np.isfinite(normal)):
             approach = float(np.dot(v - v_k, normal))
             if approach < 0.0:
                 e = (raw.getDynamicsInfo(*tables.keys[d], physicsClientId=self.cid)[5] *
                      raw.getDynamicsInfo(*tables.keys[k], physicsClientId=self.cid)[5])
                 v = v - (1.0 + e) * approach * normal
-        state.rows[d, VELOCITY] = v
         self.stats.pushes += 1
+        return v
 
     @staticmethod
-    def _kinematic_velocity(tables, state, dt, k, point):
+    def _kinematic_velocity(state, dt, k, point):
         """Velocity at world point ``point`` (after the step) of kinematic frame k's move from
         its pose before the step to its pose after, taken in dt."""
         e0, e1 = state.pose0.get(k, state.rows[k, POSE]), state.rows[k, POSE]
@@ -379,7 +482,7 @@ class Impacts:
         b = tables.keys[f][0]
         raw.resetBasePositionAndOrientation(b, pose[:3].tolist(), pose[3:].tolist(), physicsClientId=self.cid)
         raw.resetBaseVelocity(b, np.asarray(v).tolist(), np.asarray(w).tolist(), physicsClientId=self.cid)
-        state.rows[f, POSE], state.rows[f, VELOCITY] = pose, v
+        state.rows[f, POSE], state.rows[f, VELOCITY], state.rows[f, ANGULAR_VELOCITY] = pose, v, w
 
     def _contact(self, pair, lo, hi):
         """The first touch of a pair (path rows) in [lo, hi] (step fractions): one solve on
@@ -442,6 +545,47 @@ def _carry(row, tau, X):
     frame[PATH_ROW["box_in_frame"]] = _IDENTITY
     F_tau, F_1 = _core.row_poses(np.stack([frame, frame]), np.array([tau, 1.0]))
     return F_1 @ np.linalg.solve(F_tau, X)
+
+
+def _patch_points(A, ha, B, hb, n):
+    """Candidate points of two touching boxes' contact: the corners of each that lie in
+    (or within a thousandth of its size of) the other, their centre, and each box's
+    support point towards the other along n (the centre of its face, edge or corner
+    that leads)."""
+    signs = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], float)
+    pts = []
+    for (X, h), (Y, g) in (((A, ha), (B, hb)), ((B, hb), (A, ha))):
+        corners = (signs * h) @ X[:3, :3].T + X[:3, 3]
+        local = (corners - Y[:3, 3]) @ Y[:3, :3]
+        inside = np.all(np.abs(local) <= g + 1e-3 * g.min(), axis=1)
+        pts.extend(corners[inside])
+    out = [np.mean(pts, axis=0)] if pts else []
+    for X, h, d in ((A, ha, n), (B, hb, -n)):
+        along = X[:3, :3].T @ d
+        lead = np.where(np.abs(along) > 1e-9, np.sign(along), 0.0)  # a face or edge leads: its centre
+        out.append(X[:3, 3] + X[:3, :3] @ (lead * h))
+    return out + pts
+
+
+def _point_velocity(body, x):
+    """Velocity of point x moving with a body on Bullet's path (its turn clamped above
+    pi/4 a step)."""
+    w = body["w"]
+    speed = float(np.linalg.norm(w))
+    turn = _core.bullet_step_angle(speed, body["dt"]) / (speed * body["dt"]) if speed > 0.0 else 1.0
+    return body["v"] + turn * np.cross(w, x - body["com"])
+
+
+def _advance(X, v, w, dt, fraction):
+    """Pose X (4, 4) moved on for ``fraction`` of a step of dt with velocities v, w, as
+    Bullet integrates (linear; about the fixed axis of w, its angle clamped as Bullet's)."""
+    speed = float(np.linalg.norm(w))
+    out = X.copy()
+    out[:3, 3] = X[:3, 3] + fraction * dt * np.asarray(v)
+    if speed > 0.0:
+        angle = fraction * _core.bullet_step_angle(speed, dt)
+        out[:3, :3] = _rotation(np.asarray(w) / speed, angle) @ X[:3, :3]
+    return out
 
 
 def _still_row(X, row):
