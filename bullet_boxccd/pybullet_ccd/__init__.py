@@ -156,16 +156,17 @@ class BoxCCD:
         """``p.stepSimulation()`` followed by the sweep and rewind; returns this step's contacts."""
         self._sync()
         dt, n = self._dt, self._substeps
+        impulses = self.world.journal.impulses
         if n == 1:
             events = self._step(dt, 0.0, dt)
         else:
             events = []
             with self._substepping(dt, n):
-                impulses = list(self.world.journal.impulses)
                 for k in range(n):
-                    if k:
+                    if k:  # pybullet cleared the user's forces after the last substep
                         replay_impulses(self.cid, impulses)
                     events += self._step(dt / n, k * dt / n, dt)
+        impulses.clear()
         self.stats.steps += 1
         return events
 
