@@ -101,7 +101,7 @@ class BoxCCD:
         self.impacts = Impacts(self.cid, self.penetration, self.fit_tolerance, self.tolerances, self.exact_time,
                                self.stats)
         self._params_seen = -1
-        self._moves_seen = self.world.journal.reset
+        self._moves_seen = self.world.journal.last_move  # moves made while building the world are not sweeps
         self._sync()
 
     # ------------------------------------------------------------ the world
@@ -138,18 +138,16 @@ class BoxCCD:
         """Static frames the user moved since the last step, those given a velocity, and
         every frame the user teleported."""
         j, t = self.world.journal, self.world.tables
-        seen, self._moves_seen = self._moves_seen, max(self._moves_seen, max(j.moved.values(), default=0),
-                                                       max(j.velocity_set.values(), default=0), j.restored)
+        seen = self._moves_seen
+        if j.last_move <= seen:
+            return [], [], set()
+        self._moves_seen = j.last_move
         if j.restored > seen:  # restoreState: every body jumped; no kinematic move is known
-            static = np.flatnonzero(t.kind == STATIC).tolist()
-            self._state.read_poses(static)
+            self._state.read_poses(np.flatnonzero(t.kind == STATIC).tolist())
             return [], [], set(range(len(t.keys)))
-        moved = {b for b, s in j.moved.items() if s > seen}
-        given = {b for b, s in j.velocity_set.items() if s > seen}
-        frames_of = [(f, key[0]) for f, key in enumerate(t.keys)]
-        return ([f for f, b in frames_of if b in moved and t.kind[f] == STATIC],
-                [f for f, b in frames_of if b in given and t.kind[f] == STATIC],
-                {f for f, b in frames_of if b in moved})
+        moved = [f for b, s in j.moved.items() if s > seen for f in t.frames_of.get(b, ())]
+        given = [f for b, s in j.velocity_set.items() if s > seen for f in t.frames_of.get(b, ())]
+        return ([f for f in moved if t.kind[f] == STATIC], [f for f in given if t.kind[f] == STATIC], set(moved))
 
     # ------------------------------------------------------------- stepping
     def step(self) -> list:

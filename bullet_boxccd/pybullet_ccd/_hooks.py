@@ -58,6 +58,7 @@ class Journal:
 
     reset: int = 0  # resetSimulation (everything below is cleared with it)
     bodies: dict = field(default_factory=dict)  # body -> serial of its creation, removal, mass or scale change
+    last_body: int = 0  # the latest serial in ``bodies``
     created: set = field(default_factory=set)  # bodies made through the wrapped functions (provenance)
     params: int = 0  # fixedTimeStep / numSubSteps / gravity changed
     num_substeps: int = 0  # as last set through setPhysicsEngineParameter (0: never set)
@@ -72,6 +73,7 @@ class Journal:
     moved: dict = field(default_factory=dict)
     velocity_set: dict = field(default_factory=dict)  # body -> serial of the user's latest resetBaseVelocity
     restored: int = 0  # restoreState: every body jumped
+    last_move: int = 0  # the latest of the three above
     stepped: int = 0  # the user called stepSimulation directly
     # Per-step impulses pybullet clears after every stepSimulation: replayed before each
     # substep when BoxCCD runs a world's substeps itself. (name, args) for raw calls.
@@ -146,14 +148,14 @@ _LOAD_SDF = ("sdfFileName", "useMaximalCoordinates", "globalScaling")
 # ------------------------------------------------------------------ events
 def _structure(cid, body):
     j = journal(cid)
-    j.bodies[int(body)] = next(_serial)
+    j.bodies[int(body)] = j.last_body = next(_serial)
     return j
 
 
 def _on_create(cid, result):
     j = journal(cid)
     ids = result if isinstance(result, (tuple, list)) else (result,)
-    s = next(_serial)
+    s = j.last_body = next(_serial)
     for b in ids:
         if isinstance(b, int) and b >= 0:
             j.bodies[b] = s
@@ -286,22 +288,21 @@ def _set_params(i):
     return on
 
 
-def _reset_base_pose(args, kwargs, result):
-    journal(_cid(args, kwargs, 3)).moved[int(_arg(args, kwargs, 0, "bodyUniqueId"))] = next(_serial)
-
-
-def _reset_base_velocity(args, kwargs, result):
-    journal(_cid(args, kwargs, 3)).velocity_set[int(_arg(args, kwargs, 0, "objectUniqueId"))] = next(_serial)
-
-
-def _reset_joints(i):
+def _moved(i_cid, name):
     def on(args, kwargs, result):
-        journal(_cid(args, kwargs, i)).moved[int(_arg(args, kwargs, 0, "bodyUniqueId"))] = next(_serial)
+        j = journal(_cid(args, kwargs, i_cid))
+        j.moved[int(_arg(args, kwargs, 0, name))] = j.last_move = next(_serial)
     return on
 
 
+def _reset_base_velocity(args, kwargs, result):
+    j = journal(_cid(args, kwargs, 3))
+    j.velocity_set[int(_arg(args, kwargs, 0, "objectUniqueId"))] = j.last_move = next(_serial)
+
+
 def _restore_state(args, kwargs, result):
-    journal(_cid(args, kwargs, 2)).restored = next(_serial)
+    j = journal(_cid(args, kwargs, 2))
+    j.restored = j.last_move = next(_serial)
 
 
 def _step(args, kwargs, result):
@@ -457,11 +458,11 @@ WRAPPED = {
     "setPhysicsEngineParameter": _set_engine_parameter,
     "setTimeStep": _set_params(1),
     "setGravity": _set_params(3),
-    "resetBasePositionAndOrientation": _reset_base_pose,
+    "resetBasePositionAndOrientation": _moved(3, "bodyUniqueId"),
     "resetBaseVelocity": _reset_base_velocity,
-    "resetJointState": _reset_joints(4),
-    "resetJointStateMultiDof": _reset_joints(4),
-    "resetJointStatesMultiDof": _reset_joints(4),
+    "resetJointState": _moved(4, "bodyUniqueId"),
+    "resetJointStateMultiDof": _moved(4, "bodyUniqueId"),
+    "resetJointStatesMultiDof": _moved(4, "bodyUniqueId"),
     "restoreState": _restore_state,
     "stepSimulation": _step,
     "setAdditionalSearchPath": _search_path,

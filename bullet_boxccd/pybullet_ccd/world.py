@@ -69,6 +69,7 @@ class Tables:
     X_CS: np.ndarray  # (B, 4, 4): box in its frame
     radius: np.ndarray  # (B,): farthest box point from the frame's origin
     frame_boxes: list  # frame -> its boxes
+    frames_of: dict  # body -> its frames
     filters: Filters
 
     @property
@@ -99,12 +100,12 @@ class World:
         j = self.journal
         count = raw.getNumBodies(physicsClientId=self.cid)
         if self.tables is not None and count == self._count and j.reset <= self._seen:
-            dirty = [b for b, s in j.bodies.items() if s > self._seen]
-            if not dirty and j.filters <= self._seen:
+            if j.last_body <= self._seen and j.filters <= self._seen:
                 return False
+            dirty = [b for b, s in j.bodies.items() if s > self._seen]
         else:
             dirty = None  # read everything
-        self._seen = max(j.reset, max(j.bodies.values(), default=0), j.filters, self._seen)
+        self._seen = max(j.reset, j.last_body, j.filters, self._seen)
         self._count = count
         ids = [raw.getBodyUniqueId(i, physicsClientId=self.cid) for i in range(count)]
         # A registration outlives no change of its body (a new body may reuse the id).
@@ -234,13 +235,16 @@ class World:
         frame_boxes = [[] for _ in keys]
         for i, f in enumerate(box_frame):
             frame_boxes[f].append(i)
+        frames_of = {}
+        for f, (b, _) in enumerate(keys):
+            frames_of.setdefault(b, []).append(f)
         self.tables = Tables(
             keys=keys, index={k: i for i, k in enumerate(keys)},
             body=np.array([k[0] for k in keys], dtype=np.int64), kind=np.array(kinds, dtype=np.int8),
             self_collides=np.array(selfc, dtype=bool), box_frame=np.array(box_frame, dtype=np.int64),
             half=half, X_CS=X_CS,
             radius=np.linalg.norm(X_CS[:, :3, 3], axis=1) + np.linalg.norm(half, axis=1),
-            frame_boxes=frame_boxes, filters=Filters(keys, defaults, fgm, self.journal))
+            frame_boxes=frame_boxes, frames_of=frames_of, filters=Filters(keys, defaults, fgm, self.journal))
 
     # ---------------------------------------------------------------- summary
     def summary(self) -> str:
