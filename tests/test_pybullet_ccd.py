@@ -95,7 +95,14 @@ def thin_wall_run(cid, use, speed, thickness, phase, spin, orn, cube_kw=None, re
     if ccd is not None:
         assert ccd.stats.tracked_boxes == 2
     events, checked, through = [], 0, False
-    before = np.array(p.getBasePositionAndOrientation(cube, physicsClientId=cid)[0])
+    kw = cube_kw or {}  # the box centre in the centre-of-mass frame:
+    offset = np.subtract(kw.get("frame_pos", (0, 0, 0)), kw.get("inertial_pos", (0, 0, 0)))
+
+    def centre():  # of the box, not of the centre-of-mass frame (they differ with frame offsets)
+        pos, q = p.getBasePositionAndOrientation(cube, physicsClientId=cid)
+        return np.array(pos) + np.array(p.getMatrixFromQuaternion(q)).reshape(3, 3) @ offset
+
+    before = centre()
     for _ in range(int(0.6 / (speed * DT)) + 30):
         if ccd is None:
             p.stepSimulation(physicsClientId=cid)
@@ -103,7 +110,7 @@ def thin_wall_run(cid, use, speed, thickness, phase, spin, orn, cube_kw=None, re
             evs = ccd.step()
             checked += check_rewound_poses(cid, evs)
             events += evs
-        after = np.array(p.getBasePositionAndOrientation(cube, physicsClientId=cid)[0])
+        after = centre()
         if before[0] < 0.0 <= after[0]:  # where the centre crossed x = 0: inside the wall's face?
             cross = before + (after - before) * (-before[0] / (after[0] - before[0]))
             through |= bool(abs(cross[1]) <= 1.0 and abs(cross[2]) <= 1.0)

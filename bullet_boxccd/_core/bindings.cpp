@@ -413,6 +413,34 @@ Out<double, -1, kPathBoxSize> py_window_rows(const PathRows &rows, double lo, do
     return Out<double, -1, kPathBoxSize>(out, {n, size_t(kPathBoxSize)}, owner);
 }
 
+// A body for resolve_collision from a (34,) row: com (3), inv_m, inv_I (9), I (9), v (3), w (3).
+CollisionBody collision_body(const double *x) {
+    CollisionBody c;
+    std::copy(x, x + 3, c.com);
+    c.inv_m = x[3];
+    std::copy(x + 4, x + 13, c.inv_I);
+    std::copy(x + 13, x + 22, c.I);
+    std::copy(x + 22, x + 25, c.v);
+    std::copy(x + 25, x + 28, c.w);
+    return c;
+}
+
+// (approached, (2, 6) new v and w of a and b); bodies (2, 28) as in collision_body.
+nb::tuple py_resolve_collision(const In<2, 28> &bodies, const In<-1, 3> &points, const In<3> &normal, double e,
+                               double mu, int sweeps) {
+    CollisionBody a = collision_body(bodies.data()), b = collision_body(bodies.data() + 28);
+    const bool approached =
+        resolve_collision(a, b, points.data(), int(points.shape(0)), normal.data(), e, mu, sweeps);
+    auto [out, owner] = new_buffer<double>(12);
+    for (int i = 0; i < 3; ++i) {
+        out[i] = a.v[i];
+        out[3 + i] = a.w[i];
+        out[6 + i] = b.v[i];
+        out[9 + i] = b.w[i];
+    }
+    return nb::make_tuple(approached, Out<double, 2, 6>(out, {2, 6}, owner));
+}
+
 // Column layouts (name -> (start, stop)) of the frame state and the path row.
 nb::dict layouts() {
     using fs = FrameState;
@@ -543,6 +571,8 @@ NB_MODULE(_core, m) {
     m.def("layouts", &layouts);
     m.def("row_poses", &py_row_poses, nb::arg("rows"), nb::arg("taus"));
     m.def("bullet_step_angle", &bullet_step_angle, nb::arg("speed"), nb::arg("dt"));
+    m.def("resolve_collision", &py_resolve_collision, nb::arg("bodies"), nb::arg("points"), nb::arg("normal"),
+          nb::arg("e"), nb::arg("mu"), nb::arg("sweeps"));
     m.def("window_rows", &py_window_rows, nb::arg("rows"), nb::arg("lo"), nb::arg("hi"));
     m.def("fit_path", &py_fit_path, nb::arg("box"), nb::arg("lo"), nb::arg("hi"));
     m.def("first_touches", &py_first_touches, nb::arg("rows"), nb::arg("pairs"), nb::arg("fit_tolerance"),

@@ -330,6 +330,128 @@ Hit path_contact(const double *box_a, const double *box_b, double lo, double hi,
     return h;
 }
 
+namespace {
+
+void cross(const double *a, const double *b, double *out) {
+    out[0] = a[1] * b[2] - a[2] * b[1];
+    out[1] = a[2] * b[0] - a[0] * b[2];
+    out[2] = a[0] * b[1] - a[1] * b[0];
+}
+double dot(const double *a, const double *b) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
+void mat_vec(const double *M, const double *x, double *out) {
+    for (int i = 0; i < 3; ++i) out[i] = M[3 * i] * x[0] + M[3 * i + 1] * x[1] + M[3 * i + 2] * x[2];
+}
+
+// Velocity of point x on body c.
+void point_velocity(const CollisionBody &c, const double *x, double *out) {
+    const double r[3] = {x[0] - c.com[0], x[1] - c.com[1], x[2] - c.com[2]};
+    cross(c.w, r, out);
+    for (int i = 0; i < 3; ++i) out[i] += c.v[i];
+}
+
+// Of b against a, at x.
+void relative_velocity(const CollisionBody &a, const CollisionBody &b, const double *x, double *out) {
+    double va[3], vb[3];
+    point_velocity(a, x, va);
+    point_velocity(b, x, vb);
+    for (int i = 0; i < 3; ++i) out[i] = vb[i] - va[i];
+}
+
+// The effective inverse mass of one body along direction d at offset r.
+double inverse_mass(const CollisionBody &c, const double *r, const double *d) {
+    double rd[3], Ird[3], t[3];
+    cross(r, d, rd);
+    mat_vec(c.inv_I, rd, Ird);
+    cross(Ird, r, t);
+    return c.inv_m + dot(d, t);
+}
+
+// Impulse J on b at x, -J on a.
+void apply_impulse(CollisionBody &a, CollisionBody &b, const double *x, const double *J) {
+    for (CollisionBody *c : {&a, &b}) {
+        const double sign = c == &a ? -1.0 : 1.0;
+        const double r[3] = {x[0] - c->com[0], x[1] - c->com[1], x[2] - c->com[2]};
+        double rJ[3], dw[3];
+        cross(r, J, rJ);
+        mat_vec(c->inv_I, rJ, dw);
+        for (int i = 0; i < 3; ++i) {
+            c->v[i] += sign * c->inv_m * J[i];
+            c->w[i] += sign * dw[i];
+        }
+    }
+}
+
+}  // namespace
+
+bool resolve_collision(CollisionBody &a, CollisionBody &b, const double *points, int n_points, const double *n,
+                       double e, double mu, int sweeps) {
+    bool approaching = false;
+    for (int k = 0; k < n_points && !approaching; ++k) {
+        double u[3];
+        relative_velocity(a, b, points + 3 * k, u);
+        approaching = dot(u, n) < 0.0;
+    }
+    if (!approaching) return false;
+    const CollisionBody a0 = a, b0 = b;
+    const double approach = -(dot(b.v, n) - dot(a.v, n));
+    std::vector<double> normal(n_points, 0.0);
+    for (int sweep = 0; sweep < sweeps; ++sweep)
+        for (int k = 0; k < n_points; ++k) {
+            const double *x = points + 3 * k;
+            const double ra[3] = {x[0] - a.com[0], x[1] - a.com[1], x[2] - a.com[2]};
+            const double rb[3] = {x[0] - b.com[0], x[1] - b.com[1], x[2] - b.com[2]};
+            const double k_n = inverse_mass(a, ra, n) + inverse_mass(b, rb, n);
+            if (!(k_n > 0.0)) continue;
+            double u[3];
+            relative_velocity(a, b, x, u);
+            const double dj = std::max(normal[k] - dot(u, n) / k_n, 0.0) - normal[k];
+            normal[k] += dj;
+            const double Jn[3] = {dj * n[0], dj * n[1], dj * n[2]};
+            apply_impulse(a, b, x, Jn);
+            relative_velocity(a, b, x, u);
+            const double un = dot(u, n);
+            double slip[3] = {u[0] - un * n[0], u[1] - un * n[1], u[2] - un * n[2]};
+            const double speed = std::sqrt(dot(slip, slip));
+            if (!(speed > 0.0 && normal[k] > 0.0)) continue;
+            for (double &s : slip) s /= speed;
+            const double k_t = inverse_mass(a, ra, slip) + inverse_mass(b, rb, slip);
+            if (!(k_t > 0.0)) continue;
+            const double jt = std::min(speed / k_t, mu * normal[k]);
+            const double Jt[3] = {-jt * slip[0], -jt * slip[1], -jt * slip[2]};
+            apply_impulse(a, b, x, Jt);
+        }
+    const double parting = dot(b.v, n) - dot(a.v, n), k_com = a.inv_m + b.inv_m;
+    if (e > 0.0 && approach > 0.0 && parting < e * approach && k_com > 0.0) {
+        const double dj = (e * approach - parting) / k_com;
+        for (int i = 0; i < 3; ++i) {
+            a.v[i] -= a.inv_m * dj * n[i];
+            b.v[i] += b.inv_m * dj * n[i];
+        }
+    }
+    // The kinetic energy along the change is E(l) = E0 + l B + l^2 Q: keep l <= -B / Q.
+    double B = 0.0, Q = 0.0;
+    for (const auto &[now, was] : {std::pair<CollisionBody *, const CollisionBody *>{&a, &a0}, {&b, &b0}}) {
+        if (now->inv_m == 0.0) continue;
+        double dv[3], dw[3], Idw[3];
+        for (int i = 0; i < 3; ++i) {
+            dv[i] = now->v[i] - was->v[i];
+            dw[i] = now->w[i] - was->w[i];
+        }
+        mat_vec(now->I, dw, Idw);
+        B += dot(was->v, dv) / now->inv_m + dot(was->w, Idw);
+        Q += 0.5 * (dot(dv, dv) / now->inv_m + dot(dw, Idw));
+    }
+    if (Q > 0.0 && B + Q > 0.0) {
+        const double scale = std::clamp(-B / Q, 0.0, 1.0);
+        for (const auto &[now, was] : {std::pair<CollisionBody *, const CollisionBody *>{&a, &a0}, {&b, &b0}})
+            for (int i = 0; i < 3; ++i) {
+                now->v[i] = was->v[i] + scale * (now->v[i] - was->v[i]);
+                now->w[i] = was->w[i] + scale * (now->w[i] - was->w[i]);
+            }
+    }
+    return true;
+}
+
 std::vector<std::pair<int64_t, int64_t>> candidate_pairs(const double *bounds, int64_t n, int64_t n_fast,
                                                          const int64_t *frame, const int64_t *frame_body,
                                                          const uint8_t *self_collides, const FrameFilter &filter) {

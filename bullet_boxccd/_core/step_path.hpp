@@ -109,6 +109,24 @@ double first_touch(const double *box_a, const double *box_b, double fit_toleranc
 // geometry (one fit over the window, inflated likewise); t is a step fraction.
 Hit path_contact(const double *box_a, const double *box_b, double lo, double hi, const Tolerances &tol);
 
+// A rigid body at a collision: centre of mass (world), inverse mass, inverse and
+// direct inertia (world, 3x3 row-major; 0 for an immovable body), velocities.
+struct CollisionBody {
+    double com[3], inv_m, inv_I[9], I[9], v[3], w[3];
+};
+
+// The collision of bodies a and b touching at n_points points (3 each) with unit
+// normal n (from a towards b); velocities are updated in place. First perfectly
+// inelastic, as a contact solver makes it: sweeps of sequential impulses at the
+// points, a normal one that never pulls (the sum at a point stays >= 0) and stops the
+// point's approach, and a friction one along the sliding direction bounded by mu
+// times the point's normal impulse (Coulomb). Then restitution as Newton's law on the
+// centres of mass: the pair parts along n at e times the speed it approached. Last,
+// the change is scaled down if it would raise the kinetic energy. Returns whether any
+// point approached.
+bool resolve_collision(CollisionBody &a, CollisionBody &b, const double *points, int n_points, const double *n,
+                       double e, double mu, int sweeps);
+
 // pybullet's collision filter test of two frames' groups and masks (pair rules
 // are applied by the caller): mode 0 "A's group & B's mask, and B's group & A's
 // mask", mode 1 (pybullet's default) "... or ...".

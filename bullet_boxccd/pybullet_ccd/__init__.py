@@ -165,6 +165,9 @@ class BoxCCD:
                         replay_impulses(self.cid, impulses)
                     events += self._step(dt / n, k * dt / n, dt)
         impulses.clear()
+        if self.impacts.watch:
+            self._state.read_velocities()
+            self.impacts.guard(self.world.tables, self._state)
         self.stats.steps += 1
         return events
 

@@ -55,7 +55,8 @@ class CCDStats:
     contacts: int = 0
     rewinds: int = 0
     pushes: int = 0  # bodies moved ahead of a kinematic body that swept into them
-    held: int = 0  # contacts pybullet left unresolved, released by a 1-D collision
+    held: int = 0  # contacts pybullet's solve left pressing in, resolved as collisions by the plugin
+    bounded: int = 0  # partings of handled impacts slowed to what restitution allows
     rediscoveries: int = 0  # world changes read
     seconds: dict = field(default_factory=lambda: dict.fromkeys(
         ("step", "state", "broad_phase", "solve", "rewind"), 0.0))

@@ -30,6 +30,7 @@ loop), so the step ends with no pair left in a state pybullet would resolve wron
 from __future__ import annotations
 
 import heapq
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -47,7 +48,26 @@ _MOVING, _STOPPED, _CARRIED = 0, 1, 2
 _CREEP = 0.02
 # A pair pressing in again after this many collisions in one step is held where it is.
 _LEAKS = 4
+# Steps after an impact the plugin handled during which the pair's parting is bounded.
+_WATCH_STEPS = 30
+_CLAMP = 0.25 * np.pi  # Bullet clamps a body's turn above this angle a step
 _IDENTITY = np.eye(4).reshape(-1)
+
+
+@dataclass
+class _Watch:
+    """An impact the plugin handled: its normal (from A towards B), the pair's approach
+    speed along it, pybullet's combined restitution, the parting speed their spin before
+    the impact can honestly give, and the steps it is still watched."""
+
+    normal: np.ndarray
+    approach: float
+    e: float
+    spin: float
+    steps: int = 0
+
+    def __post_init__(self):
+        self.steps = _WATCH_STEPS
 
 
 class _Paths:
@@ -167,6 +187,7 @@ class Impacts:
     def __init__(self, cid, penetration, fit_tolerance, tolerances, exact_time, stats):
         self.cid, self.penetration, self.tolerances = cid, penetration, tolerances
         self.fit_tolerance, self.exact_time, self.stats = fit_tolerance, exact_time, stats
+        self.watch = {}  # (key a, key b) -> _Watch: the impacts the plugin handled, bounded for a while
 
     def resolve(self, sw, jw, tables, state, dt, user_moved, gravity):
         """Events of the step's sweep ``sw`` and of the kinematic jumps' sweep ``jw`` (either
@@ -340,11 +361,13 @@ class Impacts:
                 paths.velocity[d] = (v, paths.twist(d)[1])
                 changed = [d]
         elif info["action"] == "stop":
+            self._remember(paths, fa, fb, c.normal)
             for f in (fa, fb):
                 if paths.stoppable(f):
                     paths.stop(f, tau)
                     changed.append(f)
         elif info["action"] == "collide":
+            self._remember(paths, fa, fb, _core.path_separation(paths.rows[[i, j]], tau)[1])
             changed = self._collide(paths, i, j, tau)
             count = paths.collisions[(fa, fb)] = paths.collisions.get((fa, fb), 0) + 1
             if count > _LEAKS:  # still pressing in after that many: held where it is from now on
@@ -356,13 +379,59 @@ class Impacts:
                                c.feature, bool(changed), info["initial"]))
         return changed
 
+    # ---------------------------------------------------- restitution guard
+    def _remember(self, paths, fa, fb, normal):
+        """Note an impact the plugin handles: the pair's approach along the normal and the
+        share of it spin can honestly return, from the velocities it had before."""
+        if not np.all(np.isfinite(normal)):
+            return
+        tables = paths.tables
+        key = (tables.keys[fa], tables.keys[fb])
+        if key in self.watch:
+            self.watch[key].steps = _WATCH_STEPS
+            return
+        (va, wa), (vb, wb) = paths.twist(fa), paths.twist(fb)
+        e = 1.0
+        for f in (fa, fb):
+            e *= raw.getDynamicsInfo(*tables.keys[f], physicsClientId=self.cid)[5]
+        reach = [tables.radius[tables.frame_boxes[f]].max() for f in (fa, fb)]
+        self.watch[key] = _Watch(np.asarray(normal, float), max(-float(np.dot(vb - va, normal)), 0.0), e,
+                                 float(np.linalg.norm(wa)) * reach[0] + float(np.linalg.norm(wb)) * reach[1])
+
+    def guard(self, tables, state):
+        """After a step: the pairs whose impacts the plugin handled recently leave each
+        other along the impact's normal no faster than restitution allows (plus what their
+        spin before the impact can give); a faster parting, which pybullet's solve or the
+        cascade of a spinning box's corners can make, is taken out of the free bodies'
+        velocities, momentum kept."""
+        for key in list(self.watch):
+            w = self.watch[key]
+            w.steps -= 1
+            fa, fb = tables.index.get(key[0]), tables.index.get(key[1])
+            if w.steps < 0 or fa is None or fb is None:
+                del self.watch[key]
+                continue
+            va, vb = state.rows[fa, VELOCITY], state.rows[fb, VELOCITY]
+            excess = float(np.dot(vb - va, w.normal)) - (w.e * w.approach + w.spin)
+            if excess <= 0.0:
+                continue
+            m = [raw.getDynamicsInfo(*tables.keys[f], physicsClientId=self.cid)[0] if tables.kind[f] == FREE
+                 else np.inf for f in (fa, fb)]
+            if not (np.isfinite(m[0]) or np.isfinite(m[1])):
+                continue
+            share_a = 1.0 if not np.isfinite(m[1]) else 0.0 if not np.isfinite(m[0]) else m[1] / (m[0] + m[1])
+            for f, v, dv in ((fa, va, share_a * excess), (fb, vb, -(1.0 - share_a) * excess)):
+                if dv != 0.0:
+                    v += dv * w.normal
+                    raw.resetBaseVelocity(tables.keys[f][0], v.tolist(), state.rows[f, ANGULAR_VELOCITY].tolist(),
+                                          physicsClientId=self.cid)
+            self.stats.bounded += 1
+
     # ---------------------------------------------------------- collisions
     def _collide(self, paths, i, j, tau):
-        """Resolve a pressing contact at tau as a rigid-body collision: normal impulses
-        (pybullet's combined restitution, no friction) at the contact patch's points, each
-        time at the one approaching fastest, until none approaches (a box pivoting on one
-        corner presses in with another). The free bodies move on from tau with their new
-        velocities. Returns the frames whose paths changed."""
+        """Resolve a pressing contact at tau as a rigid-body collision of the pair at the
+        contact patch's points (see ``_impulses``). The free bodies move on from tau with
+        their new velocities. Returns the frames whose paths changed."""
         tables = paths.tables
         fa, fb = paths.frame[i], paths.frame[j]
         pair = paths.rows[[i, j]]
@@ -370,27 +439,23 @@ class Impacts:
         A, B = _core.row_poses(pair, np.array([tau, tau]))
         points = _patch_points(A, pair[0, PATH_ROW["half_extents"]], B, pair[1, PATH_ROW["half_extents"]], n)
         a, b = (self._body(paths, f, tau) for f in (fa, fb))
-        e = 1.0
+        e, mu = 1.0, 1.0
         for f in (fa, fb):
-            e *= raw.getDynamicsInfo(*tables.keys[f], physicsClientId=self.cid)[5]
-        moved = False
-        for _ in range(4 * len(points)):
-            us = [float(np.dot(_point_velocity(b, x) - _point_velocity(a, x), n)) for x in points]
-            u, point = min(us), points[int(np.argmin(us))]
-            if u >= -1e-9 * (1.0 + np.linalg.norm(a["v"]) + np.linalg.norm(b["v"])):
-                break
-            ra, rb = point - a["com"], point - b["com"]
-            k = (a["inv_m"] + b["inv_m"] + float(np.dot(n, np.cross(a["inv_I"] @ np.cross(ra, n), ra)))
-                 + float(np.dot(n, np.cross(b["inv_I"] @ np.cross(rb, n), rb))))
-            if not k > 0.0:
-                break
-            J = -(1.0 + e) * u / k  # on B along n, on A against it
-            for body, r, sign in ((a, ra, -1.0), (b, rb, 1.0)):
-                body["v"] = body["v"] + sign * J * body["inv_m"] * n
-                body["w"] = body["w"] + sign * J * (body["inv_I"] @ np.cross(r, n))
-            moved = True
-        if not moved:
-            return []
+            info = raw.getDynamicsInfo(*tables.keys[f], physicsClientId=self.cid)
+            e, mu = e * info[5], mu * info[1]  # pybullet's combined restitution and friction
+        if not _impulses(a, b, points, n, e, min(mu, 10.0)):
+            # Nothing approaches, yet the pair presses in: a body turning faster than Bullet
+            # turns it (above pi/4 a step its turn is clamped), whose path then leaves the
+            # pivot its velocity describes. Slowed to that rate, the two agree again.
+            limit = 0.999 * _CLAMP / paths.dt
+            slowed = False
+            for body in (a, b):
+                spin = float(np.linalg.norm(body["w"]))
+                if body["inv_m"] > 0.0 and spin > limit:
+                    body["w"] = body["w"] * (limit / spin)
+                    slowed = True
+            if not slowed:
+                return []
         changed = []
         for body, f in ((a, fa), (b, fb)):
             if body["inv_m"] > 0.0:
@@ -401,8 +466,7 @@ class Impacts:
 
     def _body(self, paths, f, tau):
         """Frame f at tau for a collision: centre of mass, inverse mass and world inverse
-        inertia (0 for all but free bodies), velocities v and w, and the factor by which
-        Bullet's clamp scales its turn (above pi/4 a step)."""
+        inertia (0 for all but free bodies), velocities v and w."""
         com = paths.com(f, tau)
         if paths.free(f):
             info = raw.getDynamicsInfo(*paths.tables.keys[f], physicsClientId=self.cid)
@@ -410,13 +474,14 @@ class Impacts:
             diag = np.asarray(info[2], float)
             inv_d = np.divide(1.0, diag, out=np.zeros(3), where=diag > 0)
             inv_I = com[:3, :3] @ np.diag(inv_d) @ com[:3, :3].T
+            inertia = com[:3, :3] @ np.diag(diag) @ com[:3, :3].T
             v, w = paths.twist(f)
         else:
-            inv_m, inv_I = 0.0, np.zeros((3, 3))
+            inv_m, inv_I, inertia = 0.0, np.zeros((3, 3)), np.zeros((3, 3))
             still = paths.status.get(f) == _STOPPED or (paths.tables.kind[f] == STATIC and f not in paths.kinematic)
             row = paths.state_row(f)
             v, w = (np.zeros(3), np.zeros(3)) if still else (row[VELOCITY].copy(), row[ANGULAR_VELOCITY].copy())
-        return {"com": com[:3, 3], "inv_m": inv_m, "inv_I": inv_I, "v": v, "w": w, "dt": paths.dt}
+        return {"com": com[:3, 3], "inv_m": inv_m, "inv_I": inv_I, "I": inertia, "v": v, "w": w}
 
     # -------------------------------------------------------------- jumps
     def _jumps(self, jw, tables, state, dt, kinematic, user_moved, events):
@@ -567,13 +632,19 @@ def _patch_points(A, ha, B, hb, n):
     return out + pts
 
 
-def _point_velocity(body, x):
-    """Velocity of point x moving with a body on Bullet's path (its turn clamped above
-    pi/4 a step)."""
-    w = body["w"]
-    speed = float(np.linalg.norm(w))
-    turn = _core.bullet_step_angle(speed, body["dt"]) / (speed * body["dt"]) if speed > 0.0 else 1.0
-    return body["v"] + turn * np.cross(w, x - body["com"])
+def _impulses(a, b, points, n, e, mu, sweeps=12):
+    """The collision of bodies a and b (dicts of ``Impacts._body``) touching at
+    ``points`` with normal n (from a towards b), in the core (``_core.resolve_collision``:
+    sequential impulses with Coulomb friction, perfectly inelastic, then restitution on
+    the centres of mass, never raising the kinetic energy). Velocities are updated in
+    place; returns whether anything approached."""
+    rows = np.array([np.concatenate([body["com"], [body["inv_m"]], body["inv_I"].reshape(-1),
+                                     body["I"].reshape(-1), body["v"], body["w"]]) for body in (a, b)])
+    approached, out = _core.resolve_collision(rows, np.asarray(points, float).reshape(-1, 3), np.asarray(n, float),
+                                              e, mu, sweeps)
+    for body, vw in zip((a, b), out):
+        body["v"], body["w"] = vw[:3].copy(), vw[3:].copy()
+    return approached
 
 
 def _advance(X, v, w, dt, fraction):
