@@ -461,18 +461,23 @@ nb::dict layouts() {
     return out;
 }
 
-// (first touch of each pair, NaN where none; solver calls made).
+// (first touch of each pair, NaN where none; solver calls made). With creep >= 0, a
+// pair touching at the start that does not press in (presses_in) counts as none.
 nb::tuple py_first_touches(const PathRows &rows, const Index<-1, 2> &pairs, double fit_tolerance,
-                           const Tolerances &tol) {
+                           const Tolerances &tol, double penetration, double creep) {
     const size_t n = pairs.shape(0);
     for (size_t k = 0; k < 2 * n; ++k) check_index(pairs.data()[k], rows.shape(0), "row");
     auto [out, owner] = new_buffer<double>(n);
     long solves = 0;
     {
         nb::gil_scoped_release release;
-        for (size_t k = 0; k < n; ++k)
-            out[k] = first_touch(rows.data() + kPathBoxSize * pairs.data()[2 * k],
-                                 rows.data() + kPathBoxSize * pairs.data()[2 * k + 1], fit_tolerance, tol, solves);
+        for (size_t k = 0; k < n; ++k) {
+            const double *a = rows.data() + kPathBoxSize * pairs.data()[2 * k];
+            const double *b = rows.data() + kPathBoxSize * pairs.data()[2 * k + 1];
+            out[k] = first_touch(a, b, fit_tolerance, tol, solves);
+            if (out[k] == 0.0 && creep >= 0.0 && !presses_in(a, b, penetration, creep))
+                out[k] = std::numeric_limits<double>::quiet_NaN();
+        }
     }
     return nb::make_tuple(Out<double, -1>(out, {n}, owner), solves);
 }
@@ -576,7 +581,7 @@ NB_MODULE(_core, m) {
     m.def("window_rows", &py_window_rows, nb::arg("rows"), nb::arg("lo"), nb::arg("hi"));
     m.def("fit_path", &py_fit_path, nb::arg("box"), nb::arg("lo"), nb::arg("hi"));
     m.def("first_touches", &py_first_touches, nb::arg("rows"), nb::arg("pairs"), nb::arg("fit_tolerance"),
-          nb::arg("tolerances"));
+          nb::arg("tolerances"), nb::arg("penetration") = 0.0, nb::arg("creep") = -1.0);
     m.def("path_contact", &py_path_contact, nb::arg("boxes"), nb::arg("lo"), nb::arg("hi"), nb::arg("tolerances"));
     m.def("as_builtin", &as_builtin, nb::arg("fn"), nb::arg("name"), nb::arg("doc"));
 }

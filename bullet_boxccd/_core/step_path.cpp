@@ -321,6 +321,13 @@ double first_touch(const double *box_a, const double *box_b, double fit_toleranc
     return kNaN;
 }
 
+bool presses_in(const double *box_a, const double *box_b, double penetration, double creep) {
+    const double *ha = box_a + pr::kHalfExtents, *hb = box_b + pr::kHalfExtents;
+    const double thin = std::min({ha[0], ha[1], ha[2], hb[0], hb[1], hb[2]});
+    const double target = std::max(path_depth(box_a, box_b, 0.0), 0.0) + std::max(penetration, creep * thin);
+    return !std::isnan(first_depth(box_a, box_b, 0.0, target));
+}
+
 Hit path_contact(const double *box_a, const double *box_b, double lo, double hi, const Tolerances &tol) {
     if (!finite_row(box_a) || !finite_row(box_b)) return Hit{};
     if (hi - lo < 1e-12) lo = std::max(0.0, hi - 1e-12);

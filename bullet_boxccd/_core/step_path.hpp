@@ -105,6 +105,12 @@ int fit_pieces(const double *box, double fit_tolerance);
 double first_touch(const double *box_a, const double *box_b, double fit_tolerance, const Tolerances &tol,
                    long &solves);
 
+// Whether two boxes that touch at the start of the step (path rows) press in during
+// it: their overlap grows past what it was at the start by penetration, and by
+// creep times the smaller half extent of the two (less is the creep of a contact
+// pybullet holds).
+bool presses_in(const double *box_a, const double *box_b, double penetration, double creep);
+
 // The first touch of two boxes known to touch within [lo, hi], with its
 // geometry (one fit over the window, inflated likewise); t is a step fraction.
 Hit path_contact(const double *box_a, const double *box_b, double lo, double hi, const Tolerances &tol);

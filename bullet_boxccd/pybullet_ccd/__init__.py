@@ -215,8 +215,9 @@ class BoxCCD:
         st = self._state
         st.read_velocities()
         st.end_kinematic(h)
-        sw = sweep(self.cid, t, st, h, self._sweep_reach, self.fit_tolerance, self.tolerances, self.stats, t0)
-        jw = jump_sweep(self.cid, t, st, h, self.fit_tolerance, self.tolerances, self.stats)
+        sw = sweep(self.cid, t, st, h, self._sweep_reach, self.fit_tolerance, self.tolerances, self.penetration,
+                   self.stats, t0)
+        jw = jump_sweep(self.cid, t, st, h, self.fit_tolerance, self.tolerances, self.penetration, self.stats)
         if (sw is None or not sw.hits) and jw is None:
             return [], 1.0
         t3 = time.perf_counter()

@@ -38,14 +38,12 @@ from .. import _core
 from ._hooks import raw
 from .events import CCDEvent
 from .layout import ANGULAR_VELOCITY, PATH_ROW, POSE, VELOCITY
+from .sweep import CREEP
 from .world import FREE, STATIC
 
 __all__ = ["Impacts"]
 
 _MOVING, _STOPPED, _CARRIED = 0, 1, 2
-# A pair touching when its window begins acts once it is deeper by this fraction of the
-# thinner box's half extent: less is the creep of a contact pybullet holds.
-_CREEP = 0.02
 # A pair pressing in again after this many collisions in one step is held where it is.
 _LEAKS = 4
 # Steps after an impact the plugin handled during which the pair's parting is bounded.
@@ -286,7 +284,7 @@ class Impacts:
             return None
         w = _core.window_rows(paths.rows[[i, j]], lo, 1.0)
         tau, solves = _core.first_touches(w, np.array([[0, 1]], dtype=np.int64), self.fit_tolerance,
-                                          self.tolerances._core)
+                                          self.tolerances._core, self.penetration, CREEP)
         self.stats.solver_rows += solves
         return None if np.isnan(tau[0]) else lo + float(tau[0]) * (1.0 - lo)
 
@@ -327,7 +325,7 @@ class Impacts:
         if initial:  # pressing deeper than a creep (a box pivoting on a corner sinks that corner slowly)
             thin = min(w[0, PATH_ROW["half_extents"]].min(), w[1, PATH_ROW["half_extents"]].min())
             d0 = float(_core.path_depth(w, np.zeros(1))[0])
-            target = max(d0, 0.0) + max(self.penetration, _CREEP * thin)
+            target = max(d0, 0.0) + max(self.penetration, CREEP * thin)
         if action != "push" and not _goes_wrong(w, s_touch, c, target):
             return info
         s_act = _core.first_depth(w, s_touch, target)

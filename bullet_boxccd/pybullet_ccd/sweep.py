@@ -23,9 +23,12 @@ from ._hooks import raw
 from .layout import POSE, TWIST
 from .world import FREE
 
-__all__ = ["Sweep", "sweep", "jump_sweep"]
+__all__ = ["Sweep", "sweep", "jump_sweep", "moves_into", "CREEP"]
 
 _WIDEN = np.array([-1.0, -1.0, -1.0, 1.0, 1.0, 1.0])  # lo, hi bounds widened by a scalar
+# A pair touching when the step (or a window of it) begins is a contact pybullet holds
+# unless it presses in by more than this fraction of the thinner box's half extent.
+CREEP = 0.02
 
 
 @dataclass
@@ -43,7 +46,7 @@ class Sweep:
         return {(int(i), int(j)): q for q, (i, j) in enumerate(self.pairs.tolist())}
 
 
-def sweep(cid, tables, state, dt, sweep_reach, fit_tolerance, tolerances, stats, t0):
+def sweep(cid, tables, state, dt, sweep_reach, fit_tolerance, tolerances, penetration, stats, t0):
     """Sweep the step just taken (``state`` holds the velocities of the moving frames and
     the kinematic frames' poses). Returns a Sweep, or None if nothing was fast."""
     fast, slack = _core.fast_boxes(state.rows, dt, tables.box_frame, tables.radius, sweep_reach)
@@ -78,7 +81,7 @@ def sweep(cid, tables, state, dt, sweep_reach, fit_tolerance, tolerances, stats,
     hits = []
     if len(pairs):
         # First contact of each pair on the fitted (conservative) motions.
-        tau, solves = _core.first_touches(rows, pairs, fit_tolerance, tolerances._core)
+        tau, solves = _core.first_touches(rows, pairs, fit_tolerance, tolerances._core, penetration, CREEP)
         stats.solver_rows += solves
         hit = np.flatnonzero(~np.isnan(tau))
         hits = [(i, j, t) for (i, j), t in zip(pairs[hit].tolist(), tau[hit].tolist())]
@@ -95,7 +98,7 @@ def _partners(cid, tables, bounds, slack, exclude):
     return sorted(near.difference(exclude))
 
 
-def moves_into(cid, tables, moves, frozen_of, widen, fit_tolerance, tolerances, stats):
+def moves_into(cid, tables, moves, frozen_of, widen, fit_tolerance, tolerances, penetration, stats):
     """Kinematic frames moving straight from pose to pose (``moves``: {frame: (pose0,
     pose1)}) against the free bodies standing still: ``frozen_of(partners)`` gives the
     (F, 13) state of the free frames pybullet's broad phase finds within ``widen`` of the
@@ -127,7 +130,7 @@ def moves_into(cid, tables, moves, frozen_of, widen, fit_tolerance, tolerances, 
         pairs = pairs[f.allowed_pairs(fr[pairs[:, 0]], fr[pairs[:, 1]])]
     if not len(pairs):
         return None
-    tau, solves = _core.first_touches(rows, pairs, fit_tolerance, tolerances._core)
+    tau, solves = _core.first_touches(rows, pairs, fit_tolerance, tolerances._core, penetration, CREEP)
     stats.solver_rows += solves
     hit = np.flatnonzero(~np.isnan(tau))
     hits = [(i, j, t) for (i, j), t in zip(pairs[hit].tolist(), tau[hit].tolist())]
@@ -143,7 +146,7 @@ def step_reach(state, tables, dt):
                          * tables.radius) * dt))
 
 
-def jump_sweep(cid, tables, state, dt, fit_tolerance, tolerances, stats):
+def jump_sweep(cid, tables, state, dt, fit_tolerance, tolerances, penetration, stats):
     """The kinematic frames' jumps (from E0 to P1, before the step's physics) against the
     free bodies where the step started (on Bullet's path at tau = 0)."""
     if not state.jumps:
@@ -157,4 +160,4 @@ def jump_sweep(cid, tables, state, dt, fit_tolerance, tolerances, stats):
         return start
 
     return moves_into(cid, tables, state.jumps, at_start, step_reach(state, tables, dt), fit_tolerance, tolerances,
-                      stats)
+                      penetration, stats)
