@@ -13,6 +13,8 @@
 #define NPY_NO_DEPRECATED_API NPY_1_7_API_VERSION
 #include <numpy/arrayobject.h>
 
+#include <algorithm>
+#include <initializer_list>
 #include <string>
 #include <vector>
 
@@ -271,6 +273,7 @@ nb::tuple planes(const BoxData &a, const MotionData &m_a, const BoxData &b, cons
 using PathBoxes = In<2, kPathBoxSize>;
 using PathRows = In<-1, kPathBoxSize>;
 using States = In<-1, kFrameStateSize>;
+using Bytes = nb::ndarray<const uint8_t, nb::shape<-1>, nb::c_contig, nb::device::cpu>;
 template <long... Shape>
 using Index = nb::ndarray<const int64_t, nb::shape<Shape...>, nb::c_contig, nb::device::cpu>;
 
@@ -304,39 +307,59 @@ double py_first_depth(const PathBoxes &boxes, double tau_from, double target) {
     return first_depth(boxes.data(), boxes.data() + kPathBoxSize, tau_from, target);
 }
 
-// (indices of the boxes whose reach exceeds sweep_reach, the largest reach of the others).
+// (indices of the n boxes whose reach exceeds sweep_reach, the largest reach of the
+// others, the frames of the fast boxes as a sorted list).
+nb::tuple fast_boxes(const States &state, double dt, size_t n, const int64_t *box_frame, const double *radius,
+                     const double *sweep_reach) {
+    auto [out, owner] = new_buffer<int64_t>(n);
+    size_t k = 0;
+    double slack = 0.0;
+    std::vector<int64_t> frames;
+    for (size_t i = 0; i < n; ++i) {
+        const int64_t f = box_frame[i];
+        check_index(f, state.shape(0), "frame");
+        const double r = step_reach(state.data() + kFrameStateSize * f, dt, radius[i]);
+        if (!std::isfinite(r)) continue;  // a broken body (pybullet's NaN) is left to pybullet
+        if (r > sweep_reach[i]) {
+            out[k++] = int64_t(i);
+            frames.push_back(f);
+        } else {
+            slack = std::fmax(slack, r);
+        }
+    }
+    std::sort(frames.begin(), frames.end());
+    frames.erase(std::unique(frames.begin(), frames.end()), frames.end());
+    nb::list fl;
+    for (const int64_t f : frames) fl.append(f);
+    return nb::make_tuple(Out<int64_t, -1>(out, {k}, owner), slack, fl);
+}
+
 nb::tuple py_fast_boxes(const States &state, double dt, const Index<-1> &box_frame, const In<-1> &radius,
                         const In<-1> &sweep_reach) {
     const size_t n = box_frame.shape(0);
     if (radius.shape(0) != n || sweep_reach.shape(0) != n) throw nb::value_error("box tables differ in length");
-    auto [out, owner] = new_buffer<int64_t>(n);
-    size_t k = 0;
-    double slack = 0.0;
+    return fast_boxes(state, dt, n, box_frame.data(), radius.data(), sweep_reach.data());
+}
+
+// Path rows of `n` boxes (indices into tables of n_all boxes) into out.
+void fill_path_rows(const States &state, double dt, const int64_t *boxes, size_t n, size_t n_all,
+                    const int64_t *box_frame, const double *X_CS, const double *half, double *out) {
     for (size_t i = 0; i < n; ++i) {
-        const int64_t f = box_frame.data()[i];
+        const int64_t b = boxes[i];
+        check_index(b, n_all, "box");
+        const int64_t f = box_frame[b];
         check_index(f, state.shape(0), "frame");
-        const double r = step_reach(state.data() + kFrameStateSize * f, dt, radius.data()[i]);
-        if (!std::isfinite(r)) continue;  // a broken body (pybullet's NaN) is left to pybullet
-        if (r > sweep_reach.data()[i]) out[k++] = int64_t(i);
-        else slack = std::fmax(slack, r);
+        path_row(state.data() + kFrameStateSize * f, dt, X_CS + 16 * b, half + 3 * b, out + kPathBoxSize * i);
     }
-    return nb::make_tuple(Out<int64_t, -1>(out, {k}, owner), slack);
 }
 
 Out<double, -1, kPathBoxSize> py_path_rows(const States &state, double dt, const Index<-1> &boxes,
                                           const Index<-1> &box_frame, const In<-1, 4, 4> &X_CS,
                                           const In<-1, 3> &half) {
-    const size_t n = boxes.shape(0), nb_ = box_frame.shape(0);
-    if (X_CS.shape(0) != nb_ || half.shape(0) != nb_) throw nb::value_error("box tables differ in length");
+    const size_t n = boxes.shape(0), n_all = box_frame.shape(0);
+    if (X_CS.shape(0) != n_all || half.shape(0) != n_all) throw nb::value_error("box tables differ in length");
     auto [out, owner] = new_buffer<double>(kPathBoxSize * n);
-    for (size_t i = 0; i < n; ++i) {
-        const int64_t b = boxes.data()[i];
-        check_index(b, nb_, "box");
-        const int64_t f = box_frame.data()[b];
-        check_index(f, state.shape(0), "frame");
-        path_row(state.data() + kFrameStateSize * f, dt, X_CS.data() + 16 * b, half.data() + 3 * b,
-                 out + kPathBoxSize * i);
-    }
+    fill_path_rows(state, dt, boxes.data(), n, n_all, box_frame.data(), X_CS.data(), half.data(), out);
     return Out<double, -1, kPathBoxSize>(out, {n, size_t(kPathBoxSize)}, owner);
 }
 
@@ -353,8 +376,7 @@ Out<double, -1, 7> py_frame_poses(const States &state, double dt, const Index<-1
 
 Out<int64_t, -1, 2> py_candidate_pairs(const In<-1, 6> &bounds, int64_t n_fast, const Index<-1> &frame,
                                        const Index<-1> &frame_body,
-                                       const nb::ndarray<const uint8_t, nb::shape<-1>, nb::c_contig, nb::device::cpu>
-                                           &self_collides,
+                                       const Bytes &self_collides,
                                        const Index<-1> &group, const Index<-1> &mask, int filter_mode) {
     const int64_t n = int64_t(bounds.shape(0));
     if (frame.shape(0) != size_t(n) || n_fast < 0 || n_fast > n)
@@ -441,15 +463,70 @@ nb::tuple py_resolve_collision(const In<2, 28> &bodies, const In<-1, 3> &points,
     return nb::make_tuple(approached, Out<double, 2, 6>(out, {2, 6}, owner));
 }
 
+// pybullet's reads as they come (tuples of tuples of floats), written into frame-state
+// rows without numpy on the way: for a small world, the conversion costs more than the
+// reads. `frames` is a list of frame indices, `values` one read per frame, each a tuple
+// of `parts` tuples of the given sizes, written from column `column` on.
+using MutStates = nb::ndarray<double, nb::shape<-1, kFrameStateSize>, nb::c_contig, nb::device::cpu>;
+
+void put_reads(MutStates &state, nb::handle frames, nb::handle values, int column, std::initializer_list<int> parts) {
+    PyObject *fl = frames.ptr(), *vl = values.ptr();
+    if (!PyList_Check(fl) || !PyList_Check(vl) || PyList_GET_SIZE(fl) != PyList_GET_SIZE(vl))
+        throw nb::value_error("expected two lists of equal length: frame indices and their reads");
+    for (Py_ssize_t i = 0; i < PyList_GET_SIZE(fl); ++i) {
+        const long long f = PyLong_AsLongLong(PyList_GET_ITEM(fl, i));
+        if (f == -1 && PyErr_Occurred()) throw nb::python_error();
+        check_index(f, state.shape(0), "frame");
+        double *row = state.data() + kFrameStateSize * f + column;
+        PyObject *read = PyList_GET_ITEM(vl, i);
+        if (!PyTuple_Check(read) || PyTuple_GET_SIZE(read) < Py_ssize_t(parts.size()))
+            throw nb::value_error("a read is not a tuple of its parts");
+        int k = 0, c = 0;
+        for (const int size : parts) {
+            PyObject *part = PyTuple_GET_ITEM(read, k++);
+            if (!PyTuple_Check(part) || PyTuple_GET_SIZE(part) != size) throw nb::value_error("a read's part has the wrong size");
+            for (int j = 0; j < size; ++j) {
+                const double x = PyFloat_AsDouble(PyTuple_GET_ITEM(part, j));
+                if (x == -1.0 && PyErr_Occurred()) throw nb::python_error();
+                row[c++] = x;
+            }
+        }
+    }
+}
+
+// Velocity reads ((vx, vy, vz), (wx, wy, wz)) of `frames` into their rows; whether any
+// of them may be fast: (|v| + |w| r) dt > reach, with (r, reach) per frame in `reach`
+// (the farthest box point from its origin, the smallest sweep reach of its boxes). A
+// value that is not a number counts as fast (the sweep then leaves it to pybullet).
+bool py_put_twists(MutStates &state, nb::handle frames, nb::handle twists, const In<-1, 2> &reach, double dt) {
+    put_reads(state, frames, twists, FrameState::kVelocity, {3, 3});
+    const Py_ssize_t n = PyList_GET_SIZE(frames.ptr());
+    if (size_t(n) != reach.shape(0)) throw nb::value_error("put_twists: expected one reach per frame");
+    const double *r = reach.data();
+    for (Py_ssize_t i = 0; i < n; ++i) {
+        const double *row = state.data() + kFrameStateSize * PyLong_AsLongLong(PyList_GET_ITEM(frames.ptr(), i));
+        const double *v = row + FrameState::kVelocity, *w = row + FrameState::kAngularVelocity;
+        const double speed = std::sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
+        const double spin = std::sqrt(w[0] * w[0] + w[1] * w[1] + w[2] * w[2]);
+        if (!((speed + spin * r[2 * i]) * dt <= r[2 * i + 1])) return true;
+    }
+    return false;
+}
+
+// Pose reads ((x, y, z), (qx, qy, qz, qw)) of `frames` into their rows.
+void py_put_poses(MutStates &state, nb::handle frames, nb::handle poses) {
+    put_reads(state, frames, poses, FrameState::kPosition, {3, 4});
+}
+
 // Column layouts (name -> (start, stop)) of the frame state and the path row.
 nb::dict layouts() {
     using fs = FrameState;
     using pr = PathRow;
     nb::dict state, row, out;
-    state["position"] = nb::make_tuple(fs::kPosition, fs::kOrientation);
-    state["orientation"] = nb::make_tuple(fs::kOrientation, fs::kVelocity);
-    state["velocity"] = nb::make_tuple(fs::kVelocity, fs::kAngularVelocity);
-    state["angular_velocity"] = nb::make_tuple(fs::kAngularVelocity, fs::kSize);
+    state["position"] = nb::make_tuple(FrameState::kPosition, fs::kOrientation);
+    state["orientation"] = nb::make_tuple(fs::kOrientation, FrameState::kVelocity);
+    state["velocity"] = nb::make_tuple(FrameState::kVelocity, FrameState::kAngularVelocity);
+    state["angular_velocity"] = nb::make_tuple(FrameState::kAngularVelocity, fs::kSize);
     row["pose_after"] = nb::make_tuple(pr::kPoseAfter, pr::kDisplacement);
     row["displacement"] = nb::make_tuple(pr::kDisplacement, pr::kAxis);
     row["axis"] = nb::make_tuple(pr::kAxis, pr::kAngle);
@@ -461,26 +538,128 @@ nb::dict layouts() {
     return out;
 }
 
-// (first touch of each pair, NaN where none; solver calls made). With creep >= 0, a
-// pair touching at the start that does not press in (presses_in) counts as none.
+// The first touch of each of n pairs (of rows) into out, NaN where none; returns the
+// solver calls made. With creep >= 0, a pair touching at the start that does not
+// press in (presses_in) counts as none.
+long first_touches(const double *rows, const int64_t *pairs, size_t n, double fit_tolerance, const Tolerances &tol,
+                   double penetration, double creep, double *out) {
+    long solves = 0;
+    nb::gil_scoped_release release;
+    for (size_t k = 0; k < n; ++k) {
+        const double *a = rows + kPathBoxSize * pairs[2 * k], *b = rows + kPathBoxSize * pairs[2 * k + 1];
+        out[k] = first_touch(a, b, fit_tolerance, tol, solves);
+        if (out[k] == 0.0 && creep >= 0.0 && !presses_in(a, b, penetration, creep))
+            out[k] = std::numeric_limits<double>::quiet_NaN();
+    }
+    return solves;
+}
+
+// (first touch of each pair, NaN where none; solver calls made): see first_touches.
 nb::tuple py_first_touches(const PathRows &rows, const Index<-1, 2> &pairs, double fit_tolerance,
                            const Tolerances &tol, double penetration, double creep) {
     const size_t n = pairs.shape(0);
     for (size_t k = 0; k < 2 * n; ++k) check_index(pairs.data()[k], rows.shape(0), "row");
     auto [out, owner] = new_buffer<double>(n);
-    long solves = 0;
-    {
-        nb::gil_scoped_release release;
-        for (size_t k = 0; k < n; ++k) {
-            const double *a = rows.data() + kPathBoxSize * pairs.data()[2 * k];
-            const double *b = rows.data() + kPathBoxSize * pairs.data()[2 * k + 1];
-            out[k] = first_touch(a, b, fit_tolerance, tol, solves);
-            if (out[k] == 0.0 && creep >= 0.0 && !presses_in(a, b, penetration, creep))
-                out[k] = std::numeric_limits<double>::quiet_NaN();
-        }
-    }
+    const long solves = first_touches(rows.data(), pairs.data(), n, fit_tolerance, tol, penetration, creep, out);
     return nb::make_tuple(Out<double, -1>(out, {n}, owner), solves);
 }
+
+// An array's elements, copied.
+template <class A>
+auto copy(const A &a) {
+    using T = std::remove_const_t<std::remove_pointer_t<decltype(a.data())>>;
+    return std::vector<T>(a.data(), a.data() + a.size());
+}
+
+// The box tables of a world, held across its steps, so that a step's sweep passes the
+// frame state only: the fast boxes, then the first touches of the fast boxes with
+// their partners (path rows, swept bounds, pybullet's filters, solves) in one call.
+class Sweeper {
+  public:
+    Sweeper(const Index<-1> &box_frame, const In<-1> &radius, const In<-1, 4, 4> &X_CS, const In<-1, 3> &half,
+            const In<-1> &sweep_reach, const Index<-1> &frame_body, const Bytes &self_collides,
+            const Index<-1> &group, const Index<-1> &mask, int filter_mode)
+        : n_(box_frame.shape(0)), box_frame_(copy(box_frame)), radius_(copy(radius)), X_CS_(copy(X_CS)),
+          half_(copy(half)), sweep_reach_(copy(sweep_reach)), frame_body_(copy(frame_body)),
+          self_collides_(copy(self_collides)), group_(copy(group)), mask_(copy(mask)), mode_(filter_mode) {
+        const size_t nf = frame_body.shape(0);
+        if (radius.shape(0) != n_ || X_CS.shape(0) != n_ || half.shape(0) != n_ || sweep_reach.shape(0) != n_)
+            throw nb::value_error("box tables differ in length");
+        if (self_collides.shape(0) != nf || group.shape(0) != nf || mask.shape(0) != nf)
+            throw nb::value_error("frame tables differ in length");
+        for (const int64_t f : box_frame_) check_index(f, nf, "frame");
+    }
+
+    nb::tuple fast(const States &state, double dt) const {
+        return fast_boxes(state, dt, n_, box_frame_.data(), radius_.data(), sweep_reach_.data());
+    }
+
+    // (path rows, swept bounds) of the boxes.
+    nb::tuple rows(const States &state, double dt, const Index<-1> &boxes) const {
+        const size_t n = boxes.shape(0);
+        auto [rows, owner] = new_buffer<double>(kPathBoxSize * n);
+        auto [bounds, bounds_owner] = new_buffer<double>(6 * n);
+        path_rows_and_bounds(state, dt, boxes.data(), n, rows, bounds);
+        return nb::make_tuple(Out<double, -1, kPathBoxSize>(rows, {n, size_t(kPathBoxSize)}, owner),
+                              Out<double, -1, 6>(bounds, {n, 6}, bounds_owner));
+    }
+
+    // The first n_moving of `boxes` against each other and the rest of them (with
+    // all_others: against every other box of the world, appended to `boxes`): (boxes,
+    // path rows, candidate pairs of rows, first touch of each pair, solver calls).
+    nb::tuple touches(const States &state, double dt, const Index<-1> &boxes, int64_t n_moving, bool all_others,
+                      double fit_tolerance, const Tolerances &tol, double penetration, double creep) const {
+        std::vector<int64_t> ids(boxes.data(), boxes.data() + boxes.shape(0));
+        if (n_moving < 0 || size_t(n_moving) > ids.size()) throw nb::value_error("touches: n_moving out of range");
+        if (all_others) {
+            std::vector<uint8_t> in(n_, 0);
+            for (const int64_t b : ids) {
+                check_index(b, n_, "box");
+                in[b] = 1;
+            }
+            for (size_t b = 0; b < n_; ++b)
+                if (!in[b]) ids.push_back(int64_t(b));
+        }
+        const size_t n = ids.size();
+        auto [rows, rows_owner] = new_buffer<double>(kPathBoxSize * n);
+        std::vector<double> bounds(6 * n);
+        path_rows_and_bounds(state, dt, ids.data(), n, rows, bounds.data());
+        std::vector<int64_t> frame(n);
+        for (size_t i = 0; i < n; ++i) frame[i] = box_frame_[ids[i]];
+        const FrameFilter filter{group_.data(), mask_.data(), mode_};
+        const auto pairs = candidate_pairs(bounds.data(), int64_t(n), n_moving, frame.data(), frame_body_.data(),
+                                           self_collides_.data(), filter);
+        const size_t m = pairs.size();
+        auto [pair_out, pairs_owner] = new_buffer<int64_t>(2 * m);
+        for (size_t k = 0; k < m; ++k) {
+            pair_out[2 * k] = pairs[k].first;
+            pair_out[2 * k + 1] = pairs[k].second;
+        }
+        auto [tau, tau_owner] = new_buffer<double>(m);
+        const long solves = first_touches(rows, pair_out, m, fit_tolerance, tol, penetration, creep, tau);
+        auto [box_out, boxes_owner] = new_buffer<int64_t>(n);
+        std::copy(ids.begin(), ids.end(), box_out);
+        return nb::make_tuple(Out<int64_t, -1>(box_out, {n}, boxes_owner),
+                              Out<double, -1, kPathBoxSize>(rows, {n, size_t(kPathBoxSize)}, rows_owner),
+                              Out<int64_t, -1, 2>(pair_out, {m, 2}, pairs_owner), Out<double, -1>(tau, {m}, tau_owner),
+                              solves);
+    }
+
+  private:
+    void path_rows_and_bounds(const States &state, double dt, const int64_t *boxes, size_t n, double *rows,
+                              double *bounds) const {
+        fill_path_rows(state, dt, boxes, n, n_, box_frame_.data(), X_CS_.data(), half_.data(), rows);
+        for (size_t i = 0; i < n; ++i) swept_bounds(rows + kPathBoxSize * i, bounds + 6 * i, bounds + 6 * i + 3);
+    }
+
+    size_t n_;
+    std::vector<int64_t> box_frame_;
+    std::vector<double> radius_, X_CS_, half_, sweep_reach_;
+    std::vector<int64_t> frame_body_;
+    std::vector<uint8_t> self_collides_;
+    std::vector<int64_t> group_, mask_;
+    int mode_;
+};
 
 // (coeffs (3, 4, 4), error bound) of one box's path over [lo, hi].
 nb::tuple py_fit_path(const In<kPathBoxSize> &box, double lo, double hi) {
@@ -568,6 +747,17 @@ NB_MODULE(_core, m) {
           nb::arg("sweep_reach"));
     m.def("path_rows", &py_path_rows, nb::arg("state"), nb::arg("dt"), nb::arg("boxes"), nb::arg("box_frame"),
           nb::arg("X_CS"), nb::arg("half"));
+    nb::class_<Sweeper>(m, "Sweeper")
+        .def(nb::init<const Index<-1> &, const In<-1> &, const In<-1, 4, 4> &, const In<-1, 3> &, const In<-1> &,
+                      const Index<-1> &, const Bytes &, const Index<-1> &, const Index<-1> &, int>(),
+             nb::arg("box_frame"), nb::arg("radius"), nb::arg("X_CS"), nb::arg("half"), nb::arg("sweep_reach"),
+             nb::arg("frame_body"), nb::arg("self_collides"), nb::arg("group"), nb::arg("mask"),
+             nb::arg("filter_mode"))
+        .def("fast", &Sweeper::fast, nb::arg("state"), nb::arg("dt"))
+        .def("rows", &Sweeper::rows, nb::arg("state"), nb::arg("dt"), nb::arg("boxes"))
+        .def("touches", &Sweeper::touches, nb::arg("state"), nb::arg("dt"), nb::arg("boxes"), nb::arg("n_moving"),
+             nb::arg("all_others"), nb::arg("fit_tolerance"), nb::arg("tolerances"), nb::arg("penetration"),
+             nb::arg("creep"));
     m.def("frame_poses", &py_frame_poses, nb::arg("state"), nb::arg("dt"), nb::arg("frames"), nb::arg("taus"));
     m.def("candidate_pairs", &py_candidate_pairs, nb::arg("bounds"), nb::arg("n_fast"), nb::arg("frame"),
           nb::arg("frame_body"), nb::arg("self_collides"), nb::arg("group"), nb::arg("mask"), nb::arg("filter_mode"));
@@ -576,6 +766,9 @@ NB_MODULE(_core, m) {
     m.def("layouts", &layouts);
     m.def("row_poses", &py_row_poses, nb::arg("rows"), nb::arg("taus"));
     m.def("bullet_step_angle", &bullet_step_angle, nb::arg("speed"), nb::arg("dt"));
+    m.def("put_twists", &py_put_twists, nb::arg("state"), nb::arg("frames"), nb::arg("twists"), nb::arg("reach"),
+          nb::arg("dt"));
+    m.def("put_poses", &py_put_poses, nb::arg("state"), nb::arg("frames"), nb::arg("poses"));
     m.def("resolve_collision", &py_resolve_collision, nb::arg("bodies"), nb::arg("points"), nb::arg("normal"),
           nb::arg("e"), nb::arg("mu"), nb::arg("sweeps"));
     m.def("window_rows", &py_window_rows, nb::arg("rows"), nb::arg("lo"), nb::arg("hi"));

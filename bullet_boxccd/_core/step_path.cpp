@@ -137,9 +137,24 @@ void swept_bounds(const double *box, double *lo, double *hi) {
 
 double first_depth(const double *box_a, const double *box_b, double tau_from, double target) {
     const double span = 1.0 - tau_from;
+    // The boxes' penetration depth (what path_depth gives while they overlap: the
+    // smallest of the 15 axes' overlaps) moves by at most the sum of their points'
+    // travel, which over a fraction s of the step is at most s (|displacement| +
+    // angle r) each: look-ahead samples nearer than that to tau_from cannot reach the
+    // target, and are skipped.
+    const auto travel = [](const double *box) {
+        const double *d = box + pr::kDisplacement;
+        return std::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]) + std::fabs(box[pr::kAngle]) * reach_radius(box);
+    };
+    const double need = target - std::fmax(path_depth(box_a, box_b, tau_from), 0.0);
+    const double speed = (travel(box_a) + travel(box_b)) * span;
     double lo = tau_from, hi = kNaN;
     for (int k = 48; k >= 0; --k) {
         const double t = tau_from + std::ldexp(span, -k);
+        if (k && std::ldexp(speed, -k) < need) {  // (speed NaN: no skip)
+            lo = t;
+            continue;
+        }
         if (path_depth(box_a, box_b, t) >= target) { hi = t; break; }
         lo = t;
     }
@@ -310,6 +325,9 @@ bool finite_row(const double *box) {
 double first_touch(const double *box_a, const double *box_b, double fit_tolerance, const Tolerances &tol,
                    long &solves) {
     if (!finite_row(box_a) || !finite_row(box_b)) return kNaN;
+    // Touching at the start (most often a resting contact): the fitted motions, exact
+    // at the start and inflated, touch there too.
+    if (path_depth(box_a, box_b, 0.0) >= 0.0) return 0.0;
     const int n = std::max(fit_pieces(box_a, fit_tolerance), fit_pieces(box_b, fit_tolerance));
     for (int k = 0; k < n; ++k) {  // pieces in order: the first that touches has the first touch
         const double lo = double(k) / n, hi = double(k + 1) / n;

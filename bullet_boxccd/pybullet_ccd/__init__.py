@@ -35,9 +35,10 @@ from dataclasses import replace
 
 import numpy as np
 
+from .. import _core
 from .._arrays import as_float_array
 from ..solver import DEFAULT_TOLERANCES, InvalidInputError, Tolerances
-from ._hooks import raw, replay_impulses
+from ._hooks import last_serial, raw, replay_impulses
 from .events import BoxCCDWarning, CCDEvent, CCDStats
 from .impact import Impacts
 from .state import FrameState
@@ -102,6 +103,7 @@ class BoxCCD:
                                self.stats)
         self._params_seen = -1
         self._moves_seen = self.world.journal.last_move  # moves made while building the world are not sweeps
+        self._quiet, self._epoch = False, -1  # whether a step may skip every check (see step)
         self._sync()
 
     # ------------------------------------------------------------ the world
@@ -114,8 +116,11 @@ class BoxCCD:
         if self.world.sync():
             self.stats.rediscoveries += 1
             t = self.world.tables
-            self._state = FrameState(self.cid, t)
             self._sweep_reach = self.sweep_threshold * 2.0 * t.half.min(axis=1) if len(t.half) else np.zeros(0)
+            self._state = FrameState(self.cid, t, self._sweep_reach)
+            f = t.filters
+            self._sweeper = _core.Sweeper(t.box_frame, t.radius, t.X_CS, t.half, self._sweep_reach, t.body,
+                                          t.self_collides, f.group, f.mask, f.mode)
             self.stats.tracked_boxes = len(t.half)
             small = t.half.min() if len(t.half) else math.inf
             if self.penetration >= 0.01 * small:
@@ -152,6 +157,23 @@ class BoxCCD:
     # ------------------------------------------------------------- stepping
     def step(self) -> list:
         """``p.stepSimulation()`` followed by the sweep and rewind; returns this step's contacts."""
+        cid = self.cid
+        if self._quiet and last_serial() == self._epoch and raw.getNumBodies(physicsClientId=cid) == self.world.count:
+            # Nothing changed in the world since the last step: step, read the velocities
+            # (the one read per body pybullet's API forces), and stop there if nothing is fast.
+            raw.stepSimulation(physicsClientId=cid)
+            if not self._state.read_velocities(self._dt):
+                self.stats.steps += 1
+                return []
+            events = self._step(self._dt, 0.0, self._dt, stepped=True)
+        else:
+            events = self._full_step()
+        self._quiet = self._substeps == 1 and not self._state.with_velocity and not self.impacts.watch
+        self._epoch = last_serial()
+        self.stats.steps += 1
+        return events
+
+    def _full_step(self):
         self._sync()
         dt, n = self._dt, self._substeps
         impulses = self.world.journal.impulses
@@ -166,9 +188,8 @@ class BoxCCD:
                     events += self._step(dt / n, k * dt / n, dt)
         impulses.clear()
         if self.impacts.watch:
-            self._state.read_velocities()
+            self._state.read_velocities(dt)
             self.impacts.guard(self.world.tables, self._state)
-        self.stats.steps += 1
         return events
 
     @contextmanager
@@ -180,18 +201,21 @@ class BoxCCD:
         finally:
             raw.setPhysicsEngineParameter(fixedTimeStep=dt, numSubSteps=n, physicsClientId=self.cid)
 
-    def _step(self, h, offset, dt):
+    def _step(self, h, offset, dt, stepped=False):
         """One stepSimulation of h seconds (``offset`` into the user's step of dt), swept;
-        in exact-time mode, again from the earliest contact until the step is done."""
+        in exact-time mode, again from the earliest contact until the step is done.
+        ``stepped``: pybullet took the step already, and the velocities are read."""
         moved_static, with_velocity, user_moved = self._user_moves()
         t_start, elapsed, events = time.perf_counter(), 0.0, []
         try:
             for _ in range(1 + (self.max_partial_steps if self.exact_time else 0)):
                 self._state.begin_kinematic(moved_static, with_velocity)
-                raw.stepSimulation(physicsClientId=self.cid)
+                if not stepped:
+                    raw.stepSimulation(physicsClientId=self.cid)
                 t_sim = time.perf_counter()
                 self.stats.seconds["step"] += t_sim - t_start
-                found, tau = self._sweep(h - elapsed, t_sim, user_moved)
+                found, tau = self._sweep(h - elapsed, t_sim, user_moved, read=not stepped)
+                stepped = False
                 events += [_shifted(e, offset + elapsed, dt) for e in found]
                 if not self.exact_time or tau >= 1.0:
                     break
@@ -208,14 +232,15 @@ class BoxCCD:
                 raw.setPhysicsEngineParameter(fixedTimeStep=h, physicsClientId=self.cid)
         return events
 
-    def _sweep(self, h, t0, user_moved):
+    def _sweep(self, h, t0, user_moved, read=True):
         t = self.world.tables
         if not len(t.half):
             return [], 1.0
         st = self._state
-        st.read_velocities()
+        if read:
+            st.read_velocities(h)
         st.end_kinematic(h)
-        sw = sweep(self.cid, t, st, h, self._sweep_reach, self.fit_tolerance, self.tolerances, self.penetration,
+        sw = sweep(self.cid, t, st, h, self._sweeper, self.fit_tolerance, self.tolerances, self.penetration,
                    self.stats, t0)
         jw = jump_sweep(self.cid, t, st, h, self.fit_tolerance, self.tolerances, self.penetration, self.stats)
         if (sw is None or not sw.hits) and jw is None:

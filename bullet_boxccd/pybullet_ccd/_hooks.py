@@ -20,7 +20,6 @@ connected to the same server.
 
 from __future__ import annotations
 
-import itertools
 import os
 import re
 import xml.etree.ElementTree as ET
@@ -31,7 +30,8 @@ import pybullet
 
 from .. import _core
 
-__all__ = ["Journal", "journal", "raw", "install", "new_serial", "replay_impulses", "WRAPPED", "OR_MODE"]
+__all__ = ["Journal", "journal", "raw", "install", "new_serial", "last_serial", "replay_impulses", "WRAPPED",
+           "OR_MODE"]
 
 # pybullet's defaults (PhysicsServerCommandProcessor): collisionFilterMode 1 ("group A
 # & mask B, OR group B & mask A"); a new world starts with it.
@@ -40,12 +40,30 @@ OR_MODE = 1
 # (PD_CONTROL, STABLE_PD_CONTROL): not reproducible per substep.
 _PD_MODES = {pybullet.PD_CONTROL, pybullet.STABLE_PD_CONTROL}
 
-_serial = itertools.count(1)  # one order over every client's events
+class _Serials:
+    """One order over every client's events: each change of a world takes the next
+    number, and ``last`` is the latest (a step that sees it unchanged needs no other
+    check of the journals)."""
+
+    def __init__(self):
+        self.last = 0
+
+    def __next__(self):
+        self.last += 1
+        return self.last
+
+
+_serial = _Serials()
 
 
 def new_serial() -> int:
     """A serial number later than every event so far."""
     return next(_serial)
+
+
+def last_serial() -> int:
+    """The latest serial number given (no event since a step that saw it)."""
+    return _serial.last
 
 
 @dataclass

@@ -14,13 +14,11 @@ any other.
 
 from __future__ import annotations
 
-from itertools import chain
-
 import numpy as np
 
 from .. import _core
 from ._hooks import raw
-from .layout import POSE, STATE_SIZE, TWIST
+from .layout import POSE, STATE_SIZE
 from .world import STATIC
 
 __all__ = ["FrameState", "read_twists", "read_poses"]
@@ -30,48 +28,50 @@ __all__ = ["FrameState", "read_twists", "read_poses"]
 _JUMP = 1e-12
 
 
-def read_twists(cid, keys, frames) -> np.ndarray:
-    """(n, 6) linear and angular velocity (world, centre of mass) of the given frames."""
+def read_twists(cid, keys, frames) -> list:
+    """pybullet's velocity reads of the given frames as they come, ((vx, vy, vz), (wx,
+    wy, wz)) each (world, centre of mass)."""
     get_v, get_link = raw.getBaseVelocity, raw.getLinkState
-    vel = [get_v(keys[f][0], physicsClientId=cid) if keys[f][1] == -1 else
-           get_link(keys[f][0], keys[f][1], computeLinkVelocity=1, physicsClientId=cid)[6:8] for f in frames]
-    flat = chain.from_iterable(chain.from_iterable(vel))  # faster than converting nested tuples
-    return np.fromiter(flat, dtype=float, count=6 * len(frames)).reshape(len(frames), 6)
+    return [get_v(keys[f][0], physicsClientId=cid) if keys[f][1] == -1 else
+            get_link(keys[f][0], keys[f][1], computeLinkVelocity=1, physicsClientId=cid)[6:8] for f in frames]
 
 
-def read_poses(cid, keys, frames) -> np.ndarray:
-    """(n, 7) centre-of-mass positions and quaternions (x, y, z, w) of the given frames."""
+def read_poses(cid, keys, frames) -> list:
+    """pybullet's reads of the given frames' centre-of-mass poses as they come, ((x, y,
+    z), (qx, qy, qz, qw)) each."""
     get_pose, get_link = raw.getBasePositionAndOrientation, raw.getLinkState
-    st = [get_pose(keys[f][0], physicsClientId=cid) if keys[f][1] == -1 else
-          get_link(keys[f][0], keys[f][1], physicsClientId=cid)[:2] for f in frames]
-    flat = chain.from_iterable(chain.from_iterable(st))
-    return np.fromiter(flat, dtype=float, count=7 * len(frames)).reshape(len(frames), 7)
+    return [get_pose(keys[f][0], physicsClientId=cid) if keys[f][1] == -1 else
+            get_link(keys[f][0], keys[f][1], physicsClientId=cid)[:2] for f in frames]
 
 
 class FrameState:
     """The (F, 13) state of every frame after the current step, and the kinematic frames."""
 
-    def __init__(self, cid, tables):
+    def __init__(self, cid, tables, sweep_reach):
         self.cid, self.tables = cid, tables
         self.rows = np.zeros((len(tables.keys), STATE_SIZE))
         self.rows[:, 6] = 1.0
         static = np.flatnonzero(tables.kind == STATIC).tolist()
-        if static:
-            self.rows[static, POSE] = read_poses(cid, tables.keys, static)
-        self.moving = tables.moving  # frames whose velocity is read at every step
+        _core.put_poses(self.rows, static, read_poses(cid, tables.keys, static))
+        self.moving = list(tables.moving)  # frames whose velocity is read at every step
+        # Per moving frame, the farthest box point from its origin and the smallest sweep
+        # reach of its boxes: it may be fast if (|v| + |w| r) dt exceeds that reach.
+        self.reach = np.array([[tables.radius[tables.frame_boxes[f]].max(), sweep_reach[tables.frame_boxes[f]].min()]
+                               for f in self.moving], dtype=float).reshape(-1, 2)
         self.with_velocity = set()  # static frames the user gave a velocity (Bullet moves them)
         self.kinematic = []  # static frames the user moved before the current step, or that have a velocity
         self.pose0 = {}  # kinematic frame -> its pose before the current step (E0)
         self.jumps = {}  # kinematic frame -> (E0, P1): it jumped before the step
         self.fresh = set()  # moving or kinematic frames whose poses in ``rows`` are this step's (read or set)
 
-    def read_velocities(self):
-        if self.moving:
-            self.rows[self.moving, TWIST] = read_twists(self.cid, self.tables.keys, self.moving)
+    def read_velocities(self, dt) -> bool:
+        """Read the moving frames' velocities; whether any of them may be fast."""
+        return _core.put_twists(self.rows, self.moving, read_twists(self.cid, self.tables.keys, self.moving),
+                                self.reach, dt)
 
     def read_poses(self, frames):
         if frames:
-            self.rows[frames, POSE] = read_poses(self.cid, self.tables.keys, frames)
+            _core.put_poses(self.rows, frames, read_poses(self.cid, self.tables.keys, frames))
             self.fresh.update(frames)
 
     def stale(self, frames):
@@ -96,7 +96,8 @@ class FrameState:
         if not frames:
             return
         self.read_poses(frames)
-        self.rows[frames, TWIST] = read_twists(self.cid, self.tables.keys, frames)
+        _core.put_twists(self.rows, frames, read_twists(self.cid, self.tables.keys, frames), np.zeros((len(frames), 2)),
+                         dt)
         starts = _core.frame_poses(self.rows, dt, np.array(frames, dtype=np.int64), np.zeros(len(frames)))
         for f, p1 in zip(frames, starts):
             e0 = self.pose0[f]

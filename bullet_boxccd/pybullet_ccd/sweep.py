@@ -1,7 +1,8 @@
 """The sweep of one step: which boxes moved fast, their exact paths, their partners
 (pybullet's own broad phase on the swept bounds), and each candidate pair's first
-touch. The numerics run in the core (``_core``: fast_boxes, path_rows, swept_bounds,
-candidate_pairs, first_touches); this module decides what to read and what to ask.
+touch. The numerics run in the core (``_core.Sweeper``: the fast boxes, then path
+rows, swept bounds, candidate pairs and first touches in one call); this module
+decides what to read and what to ask.
 
 A box is swept when its fastest point moves more than ``sweep_threshold`` of its
 smallest extent in the step (a slower one overlaps anything it meets in some step, so
@@ -25,7 +26,6 @@ from .world import FREE
 
 __all__ = ["Sweep", "sweep", "jump_sweep", "moves_into", "CREEP"]
 
-_WIDEN = np.array([-1.0, -1.0, -1.0, 1.0, 1.0, 1.0])  # lo, hi bounds widened by a scalar
 # A pair touching when the step (or a window of it) begins is a contact pybullet holds
 # unless it presses in by more than this fraction of the thinner box's half extent.
 CREEP = 0.02
@@ -46,56 +46,82 @@ class Sweep:
         return {(int(i), int(j)): q for q, (i, j) in enumerate(self.pairs.tolist())}
 
 
-def sweep(cid, tables, state, dt, sweep_reach, fit_tolerance, tolerances, penetration, stats, t0):
+# A step's partners of the fast boxes come from pybullet's broad phase (one
+# getOverlappingObjects per fast box) unless reading every moving frame's pose costs
+# less: measured on pybullet 3.2.7, the query costs about as much as 4 pose reads; the
+# world's boxes then pass through the core's own broad phase, up to this many.
+_READS_PER_QUERY = 4
+_OWN_BROAD_PHASE_BOXES = 64
+
+
+def sweep(cid, tables, state, dt, sweeper, fit_tolerance, tolerances, penetration, stats, t0):
     """Sweep the step just taken (``state`` holds the velocities of the moving frames and
-    the kinematic frames' poses). Returns a Sweep, or None if nothing was fast."""
-    fast, slack = _core.fast_boxes(state.rows, dt, tables.box_frame, tables.radius, sweep_reach)
+    the kinematic frames' poses; ``sweeper`` the core's copy of ``tables``). Returns a
+    Sweep, or None if nothing was fast."""
+    fast, slack, fast_frames = sweeper.fast(state.rows, dt)
     if not len(fast):
         stats.seconds["state"] += time.perf_counter() - t0
         return None
-    # Poses: the fast frames, then only the partners pybullet's own broad phase finds
-    # near their swept bounds (a slow body can be anywhere within its reach of the
-    # pose it knows, so the query is widened by the largest such reach).
-    fast_frames = sorted(set(tables.box_frame[fast].tolist()))
     state.read_poses(state.stale(fast_frames))
-    rows = _core.path_rows(state.rows, dt, fast, tables.box_frame, tables.X_CS, tables.half)
-    bounds = _core.swept_bounds(rows)
-    partners = _partners(cid, tables, bounds, slack, fast_frames)
-    state.read_poses(state.stale(partners))
+    stats.swept_boxes += len(fast)
     t1 = time.perf_counter()
     stats.seconds["state"] += t1 - t0
-    stats.swept_boxes += len(fast)
-    boxes = np.array(fast.tolist() + [b for f in partners for b in tables.frame_boxes[f]], dtype=np.int64)
-    if len(boxes) > len(fast):
-        more = _core.path_rows(state.rows, dt, boxes[len(fast):], tables.box_frame, tables.X_CS, tables.half)
-        rows, bounds = np.concatenate([rows, more]), np.concatenate([bounds, _core.swept_bounds(more)])
-    f = tables.filters
-    pairs = _core.candidate_pairs(bounds, len(fast), tables.box_frame[boxes], tables.body,
-                                  tables.self_collides.view(np.uint8), f.group, f.mask, f.mode)
-    if f.rules and len(pairs):
-        frames = tables.box_frame[boxes]
-        pairs = pairs[f.allowed_pairs(frames[pairs[:, 0]], frames[pairs[:, 1]])]
+    if len(tables.half) <= _OWN_BROAD_PHASE_BOXES and \
+            len(state.moving) <= len(fast_frames) + _READS_PER_QUERY * len(fast):
+        # Every moving frame where the step left it, and the core's broad phase.
+        state.read_poses(state.stale(state.moving))
+        boxes, all_others = fast, True
+    else:
+        # Only the partners pybullet's own broad phase finds near the fast boxes' swept
+        # bounds (a slow body can be anywhere within its reach of the pose it knows, so
+        # the query is widened by the largest such reach).
+        _, bounds = sweeper.rows(state.rows, dt, fast)
+        partners = _partners(cid, tables, bounds, slack, fast_frames)
+        state.read_poses(state.stale(partners))
+        boxes, all_others = fast, False
+        if partners:
+            boxes = np.concatenate([fast, np.array([b for f in partners for b in tables.frame_boxes[f]],
+                                                   dtype=np.int64)])
     t2 = time.perf_counter()
     stats.seconds["broad_phase"] += t2 - t1
+    boxes, rows, pairs, tau, solves = sweeper.touches(state.rows, dt, boxes, len(fast), all_others, fit_tolerance,
+                                                      tolerances._core, penetration, CREEP)
+    f = tables.filters
+    if f.rules and len(pairs):
+        frames = tables.box_frame[boxes]
+        keep = f.allowed_pairs(frames[pairs[:, 0]], frames[pairs[:, 1]])
+        pairs, tau = pairs[keep], tau[keep]
     stats.candidate_pairs += len(pairs)
-    hits = []
-    if len(pairs):
-        # First contact of each pair on the fitted (conservative) motions.
-        tau, solves = _core.first_touches(rows, pairs, fit_tolerance, tolerances._core, penetration, CREEP)
-        stats.solver_rows += solves
-        hit = np.flatnonzero(~np.isnan(tau))
-        hits = [(i, j, t) for (i, j), t in zip(pairs[hit].tolist(), tau[hit].tolist())]
+    stats.solver_rows += solves
     stats.seconds["solve"] += time.perf_counter() - t2
-    return Sweep(rows, boxes, pairs, hits)
+    return Sweep(rows, boxes, pairs, _hits(pairs, tau))
 
 
 def _partners(cid, tables, bounds, slack, exclude):
     """Frames pybullet's broad phase finds within ``slack`` of the given bounds."""
-    near = set()
-    for b in (bounds + _WIDEN * (slack + 1e-9)).tolist():
-        found = raw.getOverlappingObjects(b[:3], b[3:], physicsClientId=cid) or ()
-        near.update(tables.index[key] for key in found if key in tables.index)
+    near, index, w = set(), tables.index, slack + 1e-9
+    for x0, y0, z0, x1, y1, z1 in bounds.tolist():
+        found = raw.getOverlappingObjects((x0 - w, y0 - w, z0 - w), (x1 + w, y1 + w, z1 + w), physicsClientId=cid)
+        if found:
+            near.update(index[key] for key in found if key in index)
     return sorted(near.difference(exclude))
+
+
+def _pairs(tables, boxes, bounds, n_moving):
+    """The candidate pairs (rows into ``boxes``) of the first ``n_moving`` boxes with
+    the others and each other: bounds overlap, and pybullet's filters let them collide."""
+    f, frames = tables.filters, tables.box_frame[boxes]
+    pairs = _core.candidate_pairs(bounds, n_moving, frames, tables.body, tables.self_collides, f.group, f.mask,
+                                  f.mode)
+    if f.rules and len(pairs):
+        pairs = pairs[f.allowed_pairs(frames[pairs[:, 0]], frames[pairs[:, 1]])]
+    return pairs
+
+
+def _hits(pairs, tau):
+    """(row a, row b, first touch as a step fraction) of the pairs that touch."""
+    hit = np.flatnonzero(~np.isnan(tau))
+    return [(i, j, t) for (i, j), t in zip(pairs[hit].tolist(), tau[hit].tolist())] if len(hit) else []
 
 
 def moves_into(cid, tables, moves, frozen_of, widen, fit_tolerance, tolerances, penetration, stats):
@@ -118,22 +144,16 @@ def moves_into(cid, tables, moves, frozen_of, widen, fit_tolerance, tolerances, 
         return None
     still = frozen_of(partners).copy()
     still[:, TWIST] = 0.0
-    boxes = np.array(moving.tolist() + [b for f in partners for b in tables.frame_boxes[f]], dtype=np.int64)
-    more = _core.path_rows(still, 1.0, boxes[len(moving):], tables.box_frame, tables.X_CS, tables.half)
-    rows, bounds = np.concatenate([rows, more]), np.concatenate([bounds, _core.swept_bounds(more)])
-    f = tables.filters
-    pairs = _core.candidate_pairs(bounds, len(moving), tables.box_frame[boxes], tables.body,
-                                  tables.self_collides.view(np.uint8), f.group, f.mask, f.mode)
+    more = np.array([b for f in partners for b in tables.frame_boxes[f]], dtype=np.int64)
+    more_rows = _core.path_rows(still, 1.0, more, tables.box_frame, tables.X_CS, tables.half)
+    boxes, rows = np.concatenate([moving, more]), np.concatenate([rows, more_rows])
+    pairs = _pairs(tables, boxes, np.concatenate([bounds, _core.swept_bounds(more_rows)]), len(moving))
     pairs = pairs[pairs[:, 1] >= len(moving)] if len(pairs) else pairs
-    if f.rules and len(pairs):
-        fr = tables.box_frame[boxes]
-        pairs = pairs[f.allowed_pairs(fr[pairs[:, 0]], fr[pairs[:, 1]])]
     if not len(pairs):
         return None
     tau, solves = _core.first_touches(rows, pairs, fit_tolerance, tolerances._core, penetration, CREEP)
     stats.solver_rows += solves
-    hit = np.flatnonzero(~np.isnan(tau))
-    hits = [(i, j, t) for (i, j), t in zip(pairs[hit].tolist(), tau[hit].tolist())]
+    hits = _hits(pairs, tau)
     return Sweep(rows, boxes, pairs, hits) if hits else None
 
 

@@ -63,7 +63,7 @@ class Tables:
     index: dict  # (body, link) -> frame
     body: np.ndarray  # (F,) int64
     kind: np.ndarray  # (F,) int8
-    self_collides: np.ndarray  # (F,) bool: its body's links collide with each other
+    self_collides: np.ndarray  # (F,) uint8: 1 if its body's links collide with each other
     box_frame: np.ndarray  # (B,) int64
     half: np.ndarray  # (B, 3)
     X_CS: np.ndarray  # (B, 4, 4): box in its frame
@@ -91,7 +91,7 @@ class World:
         self._shadow = Shadow()
         self._probe_shape = -1
         self._seen = 0  # journal serial consumed
-        self._count = -1  # body count at the last sync
+        self.count = -1  # body count at the last sync
         self.tables = None
 
     # ---------------------------------------------------------------- changes
@@ -99,14 +99,14 @@ class World:
         """Read what changed since the last call; True if the tables were rebuilt."""
         j = self.journal
         count = raw.getNumBodies(physicsClientId=self.cid)
-        if self.tables is not None and count == self._count and j.reset <= self._seen:
+        if self.tables is not None and count == self.count and j.reset <= self._seen:
             if j.last_body <= self._seen and j.filters <= self._seen:
                 return False
             dirty = [b for b, s in j.bodies.items() if s > self._seen]
         else:
             dirty = None  # read everything
         self._seen = max(j.reset, j.last_body, j.filters, self._seen)
-        self._count = count
+        self.count = count
         ids = [raw.getBodyUniqueId(i, physicsClientId=self.cid) for i in range(count)]
         # A registration outlives no change of its body (a new body may reuse the id).
         self.registered = {k: v for k, v in self.registered.items()
@@ -241,7 +241,7 @@ class World:
         self.tables = Tables(
             keys=keys, index={k: i for i, k in enumerate(keys)},
             body=np.array([k[0] for k in keys], dtype=np.int64), kind=np.array(kinds, dtype=np.int8),
-            self_collides=np.array(selfc, dtype=bool), box_frame=np.array(box_frame, dtype=np.int64),
+            self_collides=np.array(selfc, dtype=np.uint8), box_frame=np.array(box_frame, dtype=np.int64),
             half=half, X_CS=X_CS,
             radius=np.linalg.norm(X_CS[:, :3, 3], axis=1) + np.linalg.norm(half, axis=1),
             frame_boxes=frame_boxes, frames_of=frames_of, filters=Filters(keys, defaults, fgm, self.journal))
