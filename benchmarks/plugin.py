@@ -52,7 +52,16 @@ seconds of ``ccd.stats.seconds`` (pybullet's step, reading the state, broad phas
 solver, rewind) are printed per step, and its counters (swept boxes, candidate pairs,
 solver rows, contacts, rewinds, held) summed over the trials.
 
-Then, tunneling only, ``--extra-seeds`` more seeds (default 100) on the 10-box scene
+First, small worlds (what a reinforcement-learning world steps millions of times):
+1 and 10 resting cubes on the ground (settled), and one cube sliding at 10 m/s on it
+(a fresh world per repeat, 100 steps timed: it is swept at every one of them). Per
+repeat, plain ``stepSimulation``, the N ``getBaseVelocity`` reads alone, and
+``BoxCCD.step()`` are timed in turn (mean over a block of steps; the min over
+repeats, as the machine may carry other load); printed: the plugin's overhead over
+plain as a multiple of the reads (target at most 2) and, for the slider, the
+plugin's ratio to plain (target at most 3).
+
+Then the scenes above. Then, tunneling only, ``--extra-seeds`` more seeds (default 100) on the 10-box scene
 for plain, the plugin (both modes), substeps 8 and 16 and native CCD (the pile is off
 the projectiles' paths, so its size does not matter there).
 
@@ -67,9 +76,11 @@ Run
 
 Options: ``--seed`` (default 2024), ``--trials`` (per N up to 100 boxes, default 6;
 larger scenes get a third of them, at least 1), ``--window``, ``--sizes``, ``--csv``.
-``--quick`` runs 2 trials (1 at 1000 boxes) of 64 steps, 20 extra seeds, and leaves
-out substeps 16 (and substeps 8 and plugin exact_time at 1000 boxes).
-The tables are markdown; the first is also written to ``benchmarks/results/plugin.csv``
+``--quick`` runs 2 trials (1 at 1000 boxes) of 64 steps, 20 extra seeds, fewer
+small-world repeats, and leaves out substeps 16 (and substeps 8 and plugin exact_time
+at 1000 boxes). The small-world table is also written to
+``benchmarks/results/plugin_small.csv``.
+The tables are markdown; the scenes' table is also written to ``benchmarks/results/plugin.csv``
 (with the plugin's phases and counters), and every tunneled projectile (N, method,
 seed, projectile, final centre) to ``benchmarks/results/plugin_tunneled.csv``. The
 commit measured is printed (read-only git). The machine may carry other load: read
@@ -246,6 +257,80 @@ def _code_version():
     return head + (" + uncommitted changes in bullet_boxccd/" if dirty else "")
 
 
+# ------------------------------------------------------------ small worlds
+def _small_world(n, slide):
+    """n settled 0.1 m cubes on a box ground (the first sliding at 10 m/s if slide)."""
+    cid = p.connect(p.DIRECT)
+    p.setGravity(0, 0, -G, physicsClientId=cid)
+    p.setTimeStep(DT, physicsClientId=cid)
+    _box(cid, (50.0, 50.0, 0.05), (0.0, 0.0, -0.05), 0.0, False)
+    cubes = [_box(cid, (HALF,) * 3, (0.3 * (k % 10), 0.3 * (k // 10), HALF), 1.0, False) for k in range(n)]
+    for _ in range(200):
+        p.stepSimulation(physicsClientId=cid)
+    if slide:
+        p.resetBaseVelocity(cubes[0], [10.0, 0.0, 0.0], [0.0, 0.0, 0.0], physicsClientId=cid)
+    return cid, cubes
+
+
+def _per_call(fn, calls):
+    t0 = time.perf_counter()
+    for _ in range(calls):
+        fn()
+    return 1e6 * (time.perf_counter() - t0) / calls
+
+
+def small_worlds(repeats, csv_path):
+    """The small-world rows: resting 1 and 10, one slider."""
+    rows = []
+    for n in (1, 10):
+        cid, cubes = _small_world(n, False)
+        ccd = BoxCCD(cid)
+        times = {"plain": [], "reads": [], "plugin": []}
+        for _ in range(repeats):  # in turn: a burst of load hits all three alike
+            times["plain"].append(_per_call(lambda: p.stepSimulation(physicsClientId=cid), 1000))
+            times["reads"].append(_per_call(lambda: [p.getBaseVelocity(b, physicsClientId=cid) for b in cubes], 1000))
+            times["plugin"].append(_per_call(ccd.step, 1000))
+        best = {k: min(v) for k, v in times.items()}
+        rows.append(dict(world=f"{n} resting", plain_us=best["plain"], reads_us=best["reads"],
+                         plugin_us=best["plugin"], swept=ccd.stats.swept_boxes, steps=ccd.stats.steps))
+        p.disconnect(cid)
+    times, swept, steps = {"plain": [], "reads": [], "plugin": []}, 0, 0
+    for _ in range(repeats):
+        for method in times:
+            cid, cubes = _small_world(1, True)
+            ccd = BoxCCD(cid) if method == "plugin" else None
+            fn = {"plain": lambda: p.stepSimulation(physicsClientId=cid),
+                  "reads": lambda: (p.stepSimulation(physicsClientId=cid), p.getBaseVelocity(cubes[0],
+                                                                                           physicsClientId=cid)),
+                  "plugin": ccd.step if ccd else None}[method]
+            times[method].append(_per_call(fn, 100))
+            if ccd:
+                swept, steps = swept + ccd.stats.swept_boxes, steps + ccd.stats.steps
+            p.disconnect(cid)
+    best = {k: min(v) for k, v in times.items()}
+    # For the slider "reads" is timed with its step: the read alone is that less plain.
+    rows.append(dict(world="1 sliding at 10 m/s", plain_us=best["plain"], reads_us=best["reads"] - best["plain"],
+                     plugin_us=best["plugin"], swept=swept, steps=steps))
+    table = []
+    for r in rows:
+        r["overhead_in_reads"] = (r["plugin_us"] - r["plain_us"]) / r["reads_us"]
+        r["ratio_to_plain"] = r["plugin_us"] / r["plain_us"]
+        slider = r["world"].startswith("1 sliding")
+        target = ("x plain <= 3: " + ("met" if r["ratio_to_plain"] <= 3.0 else "NOT met")) if slider else \
+            ("overhead <= 2 reads: " + ("met" if r["overhead_in_reads"] <= 2.0 else "NOT met"))
+        table.append((r["world"], f"{r['plain_us']:.1f}", f"{r['reads_us']:.1f}", f"{r['plugin_us']:.1f}",
+                      f"{r['overhead_in_reads']:.2f}", f"{r['ratio_to_plain']:.2f}", f"{r['swept']}/{r['steps']}",
+                      target))
+    print_table(f"small worlds (us per step, min over {repeats} repeats; reads: the N getBaseVelocity calls)",
+                ("world", "plain", "reads", "plugin", "overhead / reads", "x plain", "swept/steps", "target"),
+                table)
+    os.makedirs(os.path.dirname(os.path.abspath(csv_path)), exist_ok=True)
+    with open(csv_path, "w", newline="") as f:
+        wr = csv.DictWriter(f, fieldnames=list(rows[0]))
+        wr.writeheader()
+        wr.writerows({k: round(v, 3) if isinstance(v, float) else v for k, v in r.items()} for r in rows)
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--quick", action="store_true",
@@ -272,6 +357,8 @@ def main(argv=None):
     print(f"code: {_code_version()}")
     print(f"seed {args.seed}, window {window} steps of 1/240 s (at most 72 from 1000 boxes on), "
           f"{N_PROJ} projectiles per trial")
+
+    small_worlds(3 if args.quick else 9, os.path.join(os.path.dirname(args.csv), "plugin_small.csv"))
 
     n_trials = {n: (trials if n <= 100 else max(1, trials // 3)) for n in args.sizes}
     def quick_skip(n):

@@ -308,8 +308,8 @@ double py_first_depth(const PathBoxes &boxes, double tau_from, double target) {
 }
 
 // (indices of the n boxes whose reach exceeds sweep_reach, the largest reach of the
-// others, the frames of the fast boxes as a sorted list).
-nb::tuple fast_boxes(const States &state, double dt, size_t n, const int64_t *box_frame, const double *radius,
+// others, the frames of the fast boxes as a sorted list); None if no box is fast.
+nb::object fast_boxes(const States &state, double dt, size_t n, const int64_t *box_frame, const double *radius,
                      const double *sweep_reach) {
     auto [out, owner] = new_buffer<int64_t>(n);
     size_t k = 0;
@@ -327,18 +327,12 @@ nb::tuple fast_boxes(const States &state, double dt, size_t n, const int64_t *bo
             slack = std::fmax(slack, r);
         }
     }
+    if (k == 0) return nb::none();
     std::sort(frames.begin(), frames.end());
     frames.erase(std::unique(frames.begin(), frames.end()), frames.end());
     nb::list fl;
     for (const int64_t f : frames) fl.append(f);
     return nb::make_tuple(Out<int64_t, -1>(out, {k}, owner), slack, fl);
-}
-
-nb::tuple py_fast_boxes(const States &state, double dt, const Index<-1> &box_frame, const In<-1> &radius,
-                        const In<-1> &sweep_reach) {
-    const size_t n = box_frame.shape(0);
-    if (radius.shape(0) != n || sweep_reach.shape(0) != n) throw nb::value_error("box tables differ in length");
-    return fast_boxes(state, dt, n, box_frame.data(), radius.data(), sweep_reach.data());
 }
 
 // Path rows of `n` boxes (indices into tables of n_all boxes) into out.
@@ -494,23 +488,9 @@ void put_reads(MutStates &state, nb::handle frames, nb::handle values, int colum
     }
 }
 
-// Velocity reads ((vx, vy, vz), (wx, wy, wz)) of `frames` into their rows; whether any
-// of them may be fast: (|v| + |w| r) dt > reach, with (r, reach) per frame in `reach`
-// (the farthest box point from its origin, the smallest sweep reach of its boxes). A
-// value that is not a number counts as fast (the sweep then leaves it to pybullet).
-bool py_put_twists(MutStates &state, nb::handle frames, nb::handle twists, const In<-1, 2> &reach, double dt) {
+// Velocity reads ((vx, vy, vz), (wx, wy, wz)) of `frames` into their rows.
+void py_put_twists(MutStates &state, nb::handle frames, nb::handle twists) {
     put_reads(state, frames, twists, FrameState::kVelocity, {3, 3});
-    const Py_ssize_t n = PyList_GET_SIZE(frames.ptr());
-    if (size_t(n) != reach.shape(0)) throw nb::value_error("put_twists: expected one reach per frame");
-    const double *r = reach.data();
-    for (Py_ssize_t i = 0; i < n; ++i) {
-        const double *row = state.data() + kFrameStateSize * PyLong_AsLongLong(PyList_GET_ITEM(frames.ptr(), i));
-        const double *v = row + FrameState::kVelocity, *w = row + FrameState::kAngularVelocity;
-        const double speed = std::sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
-        const double spin = std::sqrt(w[0] * w[0] + w[1] * w[1] + w[2] * w[2]);
-        if (!((speed + spin * r[2 * i]) * dt <= r[2 * i + 1])) return true;
-    }
-    return false;
 }
 
 // Pose reads ((x, y, z), (qx, qy, qz, qw)) of `frames` into their rows.
@@ -547,8 +527,9 @@ long first_touches(const double *rows, const int64_t *pairs, size_t n, double fi
     nb::gil_scoped_release release;
     for (size_t k = 0; k < n; ++k) {
         const double *a = rows + kPathBoxSize * pairs[2 * k], *b = rows + kPathBoxSize * pairs[2 * k + 1];
-        out[k] = first_touch(a, b, fit_tolerance, tol, solves);
-        if (out[k] == 0.0 && creep >= 0.0 && !presses_in(a, b, penetration, creep))
+        const double depth0 = path_depth(a, b, 0.0);
+        out[k] = first_touch(a, b, fit_tolerance, tol, solves, depth0);
+        if (out[k] == 0.0 && creep >= 0.0 && !presses_in(a, b, penetration, creep, depth0))
             out[k] = std::numeric_limits<double>::quiet_NaN();
     }
     return solves;
@@ -590,8 +571,11 @@ class Sweeper {
         for (const int64_t f : box_frame_) check_index(f, nf, "frame");
     }
 
-    nb::tuple fast(const States &state, double dt) const {
-        return fast_boxes(state, dt, n_, box_frame_.data(), radius_.data(), sweep_reach_.data());
+    // With `frames` and `twists` (pybullet's velocity reads of those frames, as for
+    // put_twists) written into `state` first.
+    nb::object fast(MutStates &state, double dt, nb::handle frames, nb::handle twists) const {
+        if (!frames.is_none()) put_reads(state, frames, twists, FrameState::kVelocity, {3, 3});
+        return fast_boxes(States(state), dt, n_, box_frame_.data(), radius_.data(), sweep_reach_.data());
     }
 
     // (path rows, swept bounds) of the boxes.
@@ -605,8 +589,10 @@ class Sweeper {
     }
 
     // The first n_moving of `boxes` against each other and the rest of them (with
-    // all_others: against every other box of the world, appended to `boxes`): (boxes,
-    // path rows, candidate pairs of rows, first touch of each pair, solver calls).
+    // all_others: against every other box of the world, appended to `boxes`): (number
+    // of candidate pairs, solver calls, None if no pair touches, else (boxes, path
+    // rows, candidate pairs of rows, [(row a, row b, first touch)] of the pairs that
+    // touch)).
     nb::tuple touches(const States &state, double dt, const Index<-1> &boxes, int64_t n_moving, bool all_others,
                       double fit_tolerance, const Tolerances &tol, double penetration, double creep) const {
         std::vector<int64_t> ids(boxes.data(), boxes.data() + boxes.shape(0));
@@ -635,14 +621,21 @@ class Sweeper {
             pair_out[2 * k] = pairs[k].first;
             pair_out[2 * k + 1] = pairs[k].second;
         }
-        auto [tau, tau_owner] = new_buffer<double>(m);
-        const long solves = first_touches(rows, pair_out, m, fit_tolerance, tol, penetration, creep, tau);
+        std::vector<double> tau(m);
+        const long solves = first_touches(rows, pair_out, m, fit_tolerance, tol, penetration, creep, tau.data());
+        nb::list hits;
+        for (size_t k = 0; k < m; ++k)
+            if (!std::isnan(tau[k])) hits.append(nb::make_tuple(pairs[k].first, pairs[k].second, tau[k]));
+        if (hits.size() == 0) {
+            // The buffers' owners free them as they go.
+            return nb::make_tuple(m, solves, nb::none());
+        }
         auto [box_out, boxes_owner] = new_buffer<int64_t>(n);
         std::copy(ids.begin(), ids.end(), box_out);
-        return nb::make_tuple(Out<int64_t, -1>(box_out, {n}, boxes_owner),
-                              Out<double, -1, kPathBoxSize>(rows, {n, size_t(kPathBoxSize)}, rows_owner),
-                              Out<int64_t, -1, 2>(pair_out, {m, 2}, pairs_owner), Out<double, -1>(tau, {m}, tau_owner),
-                              solves);
+        return nb::make_tuple(m, solves,
+                              nb::make_tuple(Out<int64_t, -1>(box_out, {n}, boxes_owner),
+                                             Out<double, -1, kPathBoxSize>(rows, {n, size_t(kPathBoxSize)}, rows_owner),
+                                             Out<int64_t, -1, 2>(pair_out, {m, 2}, pairs_owner), hits));
     }
 
   private:
@@ -743,8 +736,6 @@ NB_MODULE(_core, m) {
     m.def("path_separation", &py_path_separation, nb::arg("boxes"), nb::arg("tau"));
     m.def("first_depth", &py_first_depth, nb::arg("boxes"), nb::arg("tau_from"), nb::arg("target"));
     m.def("swept_bounds", &py_swept_bounds, nb::arg("boxes"));
-    m.def("fast_boxes", &py_fast_boxes, nb::arg("state"), nb::arg("dt"), nb::arg("box_frame"), nb::arg("radius"),
-          nb::arg("sweep_reach"));
     m.def("path_rows", &py_path_rows, nb::arg("state"), nb::arg("dt"), nb::arg("boxes"), nb::arg("box_frame"),
           nb::arg("X_CS"), nb::arg("half"));
     nb::class_<Sweeper>(m, "Sweeper")
@@ -753,7 +744,8 @@ NB_MODULE(_core, m) {
              nb::arg("box_frame"), nb::arg("radius"), nb::arg("X_CS"), nb::arg("half"), nb::arg("sweep_reach"),
              nb::arg("frame_body"), nb::arg("self_collides"), nb::arg("group"), nb::arg("mask"),
              nb::arg("filter_mode"))
-        .def("fast", &Sweeper::fast, nb::arg("state"), nb::arg("dt"))
+        .def("fast", &Sweeper::fast, nb::arg("state"), nb::arg("dt"), nb::arg("frames") = nb::none(),
+             nb::arg("twists") = nb::none())
         .def("rows", &Sweeper::rows, nb::arg("state"), nb::arg("dt"), nb::arg("boxes"))
         .def("touches", &Sweeper::touches, nb::arg("state"), nb::arg("dt"), nb::arg("boxes"), nb::arg("n_moving"),
              nb::arg("all_others"), nb::arg("fit_tolerance"), nb::arg("tolerances"), nb::arg("penetration"),
@@ -766,8 +758,7 @@ NB_MODULE(_core, m) {
     m.def("layouts", &layouts);
     m.def("row_poses", &py_row_poses, nb::arg("rows"), nb::arg("taus"));
     m.def("bullet_step_angle", &bullet_step_angle, nb::arg("speed"), nb::arg("dt"));
-    m.def("put_twists", &py_put_twists, nb::arg("state"), nb::arg("frames"), nb::arg("twists"), nb::arg("reach"),
-          nb::arg("dt"));
+    m.def("put_twists", &py_put_twists, nb::arg("state"), nb::arg("frames"), nb::arg("twists"));
     m.def("put_poses", &py_put_poses, nb::arg("state"), nb::arg("frames"), nb::arg("poses"));
     m.def("resolve_collision", &py_resolve_collision, nb::arg("bodies"), nb::arg("points"), nb::arg("normal"),
           nb::arg("e"), nb::arg("mu"), nb::arg("sweeps"));

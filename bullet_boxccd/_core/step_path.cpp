@@ -135,7 +135,7 @@ void swept_bounds(const double *box, double *lo, double *hi) {
     }
 }
 
-double first_depth(const double *box_a, const double *box_b, double tau_from, double target) {
+double first_depth(const double *box_a, const double *box_b, double tau_from, double target, double depth_from) {
     const double span = 1.0 - tau_from;
     // The boxes' penetration depth (what path_depth gives while they overlap: the
     // smallest of the 15 axes' overlaps) moves by at most the sum of their points'
@@ -146,7 +146,8 @@ double first_depth(const double *box_a, const double *box_b, double tau_from, do
         const double *d = box + pr::kDisplacement;
         return std::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]) + std::fabs(box[pr::kAngle]) * reach_radius(box);
     };
-    const double need = target - std::fmax(path_depth(box_a, box_b, tau_from), 0.0);
+    if (std::isnan(depth_from)) depth_from = path_depth(box_a, box_b, tau_from);
+    const double need = target - std::fmax(depth_from, 0.0);
     const double speed = (travel(box_a) + travel(box_b)) * span;
     double lo = tau_from, hi = kNaN;
     for (int k = 48; k >= 0; --k) {
@@ -323,11 +324,12 @@ bool finite_row(const double *box) {
 }  // namespace
 
 double first_touch(const double *box_a, const double *box_b, double fit_tolerance, const Tolerances &tol,
-                   long &solves) {
+                   long &solves, double depth0) {
     if (!finite_row(box_a) || !finite_row(box_b)) return kNaN;
     // Touching at the start (most often a resting contact): the fitted motions, exact
     // at the start and inflated, touch there too.
-    if (path_depth(box_a, box_b, 0.0) >= 0.0) return 0.0;
+    if (std::isnan(depth0)) depth0 = path_depth(box_a, box_b, 0.0);
+    if (depth0 >= 0.0) return 0.0;
     const int n = std::max(fit_pieces(box_a, fit_tolerance), fit_pieces(box_b, fit_tolerance));
     for (int k = 0; k < n; ++k) {  // pieces in order: the first that touches has the first touch
         const double lo = double(k) / n, hi = double(k + 1) / n;
@@ -339,11 +341,12 @@ double first_touch(const double *box_a, const double *box_b, double fit_toleranc
     return kNaN;
 }
 
-bool presses_in(const double *box_a, const double *box_b, double penetration, double creep) {
+bool presses_in(const double *box_a, const double *box_b, double penetration, double creep, double depth0) {
     const double *ha = box_a + pr::kHalfExtents, *hb = box_b + pr::kHalfExtents;
     const double thin = std::min({ha[0], ha[1], ha[2], hb[0], hb[1], hb[2]});
-    const double target = std::max(path_depth(box_a, box_b, 0.0), 0.0) + std::max(penetration, creep * thin);
-    return !std::isnan(first_depth(box_a, box_b, 0.0, target));
+    if (std::isnan(depth0)) depth0 = path_depth(box_a, box_b, 0.0);
+    const double target = std::max(depth0, 0.0) + std::max(penetration, creep * thin);
+    return !std::isnan(first_depth(box_a, box_b, 0.0, target, depth0));
 }
 
 Hit path_contact(const double *box_a, const double *box_b, double lo, double hi, const Tolerances &tol) {

@@ -12,6 +12,7 @@
 #pragma once
 
 #include <cstdint>
+#include <limits>
 #include <utility>
 #include <vector>
 
@@ -78,7 +79,11 @@ double path_separation(const double *box_a, const double *box_b, double tau, dou
 // does not. A geometric look-ahead (offsets 2^-k of the rest of the step) finds
 // the first sample past the target even for a fast pass through a thin wall;
 // bisection then brackets the crossing to 1e-15 and returns its upper end.
-double first_depth(const double *box_a, const double *box_b, double tau_from, double target);
+// Samples nearer tau_from than the boxes' travel lets the depth grow to the target
+// are skipped (penetration depth moves no faster than the boxes' points).
+// depth_from: the depth at tau_from, if known (NaN: computed).
+double first_depth(const double *box_a, const double *box_b, double tau_from, double target,
+                   double depth_from = std::numeric_limits<double>::quiet_NaN());
 
 // Axis-aligned bounds of a box over the whole step: exact at tau = 0, 1/4, ...,
 // 1 (centre +- |R| half) and widened by the largest distance of a point's arc
@@ -102,14 +107,16 @@ int fit_pieces(const double *box, double fit_tolerance);
 // inflated by the fit's error bound so that the answer is never late: the step
 // fraction, NaN if they stay apart (or a row is not finite). `solves` counts
 // the solver calls (one per piece tried).
+// depth0: path_depth at 0, if known (NaN: computed); a pair touching then touches at 0.
 double first_touch(const double *box_a, const double *box_b, double fit_tolerance, const Tolerances &tol,
-                   long &solves);
+                   long &solves, double depth0 = std::numeric_limits<double>::quiet_NaN());
 
 // Whether two boxes that touch at the start of the step (path rows) press in during
 // it: their overlap grows past what it was at the start by penetration, and by
 // creep times the smaller half extent of the two (less is the creep of a contact
 // pybullet holds).
-bool presses_in(const double *box_a, const double *box_b, double penetration, double creep);
+bool presses_in(const double *box_a, const double *box_b, double penetration, double creep,
+                double depth0 = std::numeric_limits<double>::quiet_NaN());
 
 // The first touch of two boxes known to touch within [lo, hi], with its
 // geometry (one fit over the window, inflated likewise); t is a step fraction.

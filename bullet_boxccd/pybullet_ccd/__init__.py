@@ -117,7 +117,7 @@ class BoxCCD:
             self.stats.rediscoveries += 1
             t = self.world.tables
             self._sweep_reach = self.sweep_threshold * 2.0 * t.half.min(axis=1) if len(t.half) else np.zeros(0)
-            self._state = FrameState(self.cid, t, self._sweep_reach)
+            self._state = FrameState(self.cid, t)
             f = t.filters
             self._sweeper = _core.Sweeper(t.box_frame, t.radius, t.X_CS, t.half, self._sweep_reach, t.body,
                                           t.self_collides, f.group, f.mask, f.mode)
@@ -162,10 +162,12 @@ class BoxCCD:
             # Nothing changed in the world since the last step: step, read the velocities
             # (the one read per body pybullet's API forces), and stop there if nothing is fast.
             raw.stepSimulation(physicsClientId=cid)
-            if not self._state.read_velocities(self._dt):
+            st = self._state
+            fast = self._sweeper.fast(st.rows, self._dt, st.moving, st.twists())
+            if fast is None:
                 self.stats.steps += 1
                 return []
-            events = self._step(self._dt, 0.0, self._dt, stepped=True)
+            events = self._step(self._dt, 0.0, self._dt, fast=fast)
         else:
             events = self._full_step()
         self._quiet = self._substeps == 1 and not self._state.with_velocity and not self.impacts.watch
@@ -188,7 +190,7 @@ class BoxCCD:
                     events += self._step(dt / n, k * dt / n, dt)
         impulses.clear()
         if self.impacts.watch:
-            self._state.read_velocities(dt)
+            self._state.read_velocities()
             self.impacts.guard(self.world.tables, self._state)
         return events
 
@@ -201,22 +203,24 @@ class BoxCCD:
         finally:
             raw.setPhysicsEngineParameter(fixedTimeStep=dt, numSubSteps=n, physicsClientId=self.cid)
 
-    def _step(self, h, offset, dt, stepped=False):
+    def _step(self, h, offset, dt, fast=None):
         """One stepSimulation of h seconds (``offset`` into the user's step of dt), swept;
         in exact-time mode, again from the earliest contact until the step is done.
-        ``stepped``: pybullet took the step already, and the velocities are read."""
+        ``fast``: pybullet took the step already, the velocities are read, and these are
+        the fast boxes (``Sweeper.fast``)."""
         moved_static, with_velocity, user_moved = self._user_moves()
         t_start, elapsed, events = time.perf_counter(), 0.0, []
         try:
             for _ in range(1 + (self.max_partial_steps if self.exact_time else 0)):
                 self._state.begin_kinematic(moved_static, with_velocity)
-                if not stepped:
+                if fast is None:
                     raw.stepSimulation(physicsClientId=self.cid)
                 t_sim = time.perf_counter()
                 self.stats.seconds["step"] += t_sim - t_start
-                found, tau = self._sweep(h - elapsed, t_sim, user_moved, read=not stepped)
-                stepped = False
-                events += [_shifted(e, offset + elapsed, dt) for e in found]
+                found, tau = self._sweep(h - elapsed, t_sim, user_moved, fast)
+                fast = None
+                if found:
+                    events += [_shifted(e, offset + elapsed, dt) for e in found]
                 if not self.exact_time or tau >= 1.0:
                     break
                 # Exact-time mode: the world stopped at tau of this (partial) step;
@@ -232,18 +236,18 @@ class BoxCCD:
                 raw.setPhysicsEngineParameter(fixedTimeStep=h, physicsClientId=self.cid)
         return events
 
-    def _sweep(self, h, t0, user_moved, read=True):
+    def _sweep(self, h, t0, user_moved, fast=None):
         t = self.world.tables
         if not len(t.half):
             return [], 1.0
         st = self._state
-        if read:
-            st.read_velocities(h)
+        if fast is None:
+            st.read_velocities()
         st.end_kinematic(h)
         sw = sweep(self.cid, t, st, h, self._sweeper, self.fit_tolerance, self.tolerances, self.penetration,
-                   self.stats, t0)
+                   self.stats, t0, fast)
         jw = jump_sweep(self.cid, t, st, h, self.fit_tolerance, self.tolerances, self.penetration, self.stats)
-        if (sw is None or not sw.hits) and jw is None:
+        if sw is None and jw is None:
             return [], 1.0
         t3 = time.perf_counter()
         events, tau = self.impacts.resolve(sw, jw, t, st, h, user_moved, self._gravity)

@@ -47,27 +47,25 @@ def read_poses(cid, keys, frames) -> list:
 class FrameState:
     """The (F, 13) state of every frame after the current step, and the kinematic frames."""
 
-    def __init__(self, cid, tables, sweep_reach):
+    def __init__(self, cid, tables):
         self.cid, self.tables = cid, tables
         self.rows = np.zeros((len(tables.keys), STATE_SIZE))
         self.rows[:, 6] = 1.0
         static = np.flatnonzero(tables.kind == STATIC).tolist()
         _core.put_poses(self.rows, static, read_poses(cid, tables.keys, static))
         self.moving = list(tables.moving)  # frames whose velocity is read at every step
-        # Per moving frame, the farthest box point from its origin and the smallest sweep
-        # reach of its boxes: it may be fast if (|v| + |w| r) dt exceeds that reach.
-        self.reach = np.array([[tables.radius[tables.frame_boxes[f]].max(), sweep_reach[tables.frame_boxes[f]].min()]
-                               for f in self.moving], dtype=float).reshape(-1, 2)
         self.with_velocity = set()  # static frames the user gave a velocity (Bullet moves them)
         self.kinematic = []  # static frames the user moved before the current step, or that have a velocity
         self.pose0 = {}  # kinematic frame -> its pose before the current step (E0)
         self.jumps = {}  # kinematic frame -> (E0, P1): it jumped before the step
         self.fresh = set()  # moving or kinematic frames whose poses in ``rows`` are this step's (read or set)
 
-    def read_velocities(self, dt) -> bool:
-        """Read the moving frames' velocities; whether any of them may be fast."""
-        return _core.put_twists(self.rows, self.moving, read_twists(self.cid, self.tables.keys, self.moving),
-                                self.reach, dt)
+    def twists(self) -> list:
+        """pybullet's velocity reads of the moving frames (see read_twists)."""
+        return read_twists(self.cid, self.tables.keys, self.moving)
+
+    def read_velocities(self):
+        _core.put_twists(self.rows, self.moving, self.twists())
 
     def read_poses(self, frames):
         if frames:
@@ -82,11 +80,14 @@ class FrameState:
     def begin_kinematic(self, moved_static, with_velocity):
         """Before the step: note the static frames the user moved since the last step and
         those with a velocity (their poses before the step are the ones known now)."""
+        self.fresh = set()
+        if not (moved_static or with_velocity or self.with_velocity):
+            self.pose0, self.kinematic = {}, []
+            return
         self.with_velocity.update(with_velocity)
         frames = sorted(set(moved_static) | self.with_velocity)
         self.pose0 = {f: self.rows[f, POSE].copy() for f in frames}
         self.kinematic = frames
-        self.fresh = set()
 
     def end_kinematic(self, dt):
         """After the step: the kinematic frames' poses and velocities now; the frames that
@@ -96,8 +97,7 @@ class FrameState:
         if not frames:
             return
         self.read_poses(frames)
-        _core.put_twists(self.rows, frames, read_twists(self.cid, self.tables.keys, frames), np.zeros((len(frames), 2)),
-                         dt)
+        _core.put_twists(self.rows, frames, read_twists(self.cid, self.tables.keys, frames))
         starts = _core.frame_poses(self.rows, dt, np.array(frames, dtype=np.int64), np.zeros(len(frames)))
         for f, p1 in zip(frames, starts):
             e0 = self.pose0[f]

@@ -54,23 +54,27 @@ _READS_PER_QUERY = 4
 _OWN_BROAD_PHASE_BOXES = 64
 
 
-def sweep(cid, tables, state, dt, sweeper, fit_tolerance, tolerances, penetration, stats, t0):
+def sweep(cid, tables, state, dt, sweeper, fit_tolerance, tolerances, penetration, stats, t0, fast=None):
     """Sweep the step just taken (``state`` holds the velocities of the moving frames and
-    the kinematic frames' poses; ``sweeper`` the core's copy of ``tables``). Returns a
-    Sweep, or None if nothing was fast."""
-    fast, slack, fast_frames = sweeper.fast(state.rows, dt)
-    if not len(fast):
-        stats.seconds["state"] += time.perf_counter() - t0
-        return None
+    the kinematic frames' poses; ``sweeper`` the core's copy of ``tables``; ``fast``
+    what ``sweeper.fast`` found, if it was asked already). Returns a Sweep, or None if
+    nothing touched."""
+    if fast is None:
+        fast = sweeper.fast(state.rows, dt)
+        if fast is None:
+            stats.seconds["state"] += time.perf_counter() - t0
+            return None
+    fast, slack, fast_frames = fast
     state.read_poses(state.stale(fast_frames))
     stats.swept_boxes += len(fast)
     t1 = time.perf_counter()
     stats.seconds["state"] += t1 - t0
+    boxes, all_others = fast, False
     if len(tables.half) <= _OWN_BROAD_PHASE_BOXES and \
             len(state.moving) <= len(fast_frames) + _READS_PER_QUERY * len(fast):
         # Every moving frame where the step left it, and the core's broad phase.
         state.read_poses(state.stale(state.moving))
-        boxes, all_others = fast, True
+        all_others = True
     else:
         # Only the partners pybullet's own broad phase finds near the fast boxes' swept
         # bounds (a slow body can be anywhere within its reach of the pose it knows, so
@@ -78,23 +82,26 @@ def sweep(cid, tables, state, dt, sweeper, fit_tolerance, tolerances, penetratio
         _, bounds = sweeper.rows(state.rows, dt, fast)
         partners = _partners(cid, tables, bounds, slack, fast_frames)
         state.read_poses(state.stale(partners))
-        boxes, all_others = fast, False
         if partners:
             boxes = np.concatenate([fast, np.array([b for f in partners for b in tables.frame_boxes[f]],
                                                    dtype=np.int64)])
     t2 = time.perf_counter()
     stats.seconds["broad_phase"] += t2 - t1
-    boxes, rows, pairs, tau, solves = sweeper.touches(state.rows, dt, boxes, len(fast), all_others, fit_tolerance,
-                                                      tolerances._core, penetration, CREEP)
-    f = tables.filters
-    if f.rules and len(pairs):
-        frames = tables.box_frame[boxes]
-        keep = f.allowed_pairs(frames[pairs[:, 0]], frames[pairs[:, 1]])
-        pairs, tau = pairs[keep], tau[keep]
-    stats.candidate_pairs += len(pairs)
+    n_pairs, solves, found = sweeper.touches(state.rows, dt, boxes, len(fast), all_others, fit_tolerance,
+                                             tolerances._core, penetration, CREEP)
+    stats.candidate_pairs += n_pairs
     stats.solver_rows += solves
     stats.seconds["solve"] += time.perf_counter() - t2
-    return Sweep(rows, boxes, pairs, _hits(pairs, tau))
+    if found is None:
+        return None
+    boxes, rows, pairs, hits = found
+    f = tables.filters
+    if f.rules:
+        frames = tables.box_frame[boxes]
+        pairs = pairs[f.allowed_pairs(frames[pairs[:, 0]], frames[pairs[:, 1]])]
+        allowed = set(map(tuple, pairs.tolist()))
+        hits = [h for h in hits if h[:2] in allowed]
+    return Sweep(rows, boxes, pairs, hits) if hits else None
 
 
 def _partners(cid, tables, bounds, slack, exclude):
