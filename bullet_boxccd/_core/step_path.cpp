@@ -80,12 +80,12 @@ double overlap_on(const double u[3], const Pose &A, const double *ha, const Pose
 
 }  // namespace
 
-double path_separation(const double *box_a, const double *box_b, double tau, double *axis) {
+double path_separation(const double *box_a, const double *box_b, double tau, double *axis, double floor) {
     const Pose A = box_pose(box_a, tau), B = box_pose(box_b, tau);
     const double *ha = box_a + pr::kHalfExtents, *hb = box_b + pr::kHalfExtents;
     const double d[3] = {B.c[0] - A.c[0], B.c[1] - A.c[1], B.c[2] - A.c[2]};
     double depth = std::numeric_limits<double>::infinity();
-    const auto consider = [&](const double u[3]) {
+    const auto consider = [&](const double u[3]) {  // whether the depth is still >= floor
         const double o = overlap_on(u, A, ha, B, hb, d);
         if (o < depth) {
             depth = o;
@@ -94,11 +94,11 @@ double path_separation(const double *box_a, const double *box_b, double tau, dou
                 for (int k = 0; k < 3; ++k) axis[k] = sgn * u[k];
             }
         }
+        return !(depth < floor);
     };
     for (int i = 0; i < 3; ++i) {  // face normals (the boxes are rigid: axes are orthonormal)
         const double ua[3] = {A.R[0][i], A.R[1][i], A.R[2][i]}, ub[3] = {B.R[0][i], B.R[1][i], B.R[2][i]};
-        consider(ua);
-        consider(ub);
+        if (!consider(ua) || !consider(ub)) return depth;
     }
     for (int i = 0; i < 3; ++i)
         for (int j = 0; j < 3; ++j) {
@@ -107,7 +107,7 @@ double path_separation(const double *box_a, const double *box_b, double tau, dou
             const double n = std::sqrt(u[0] * u[0] + u[1] * u[1] + u[2] * u[2]);
             if (!(n > 1e-9)) continue;  // parallel edges give no axis
             for (double &x : u) x /= n;
-            consider(u);
+            if (!consider(u)) return depth;
         }
     return depth;
 }
@@ -115,6 +115,16 @@ double path_separation(const double *box_a, const double *box_b, double tau, dou
 double path_depth(const double *box_a, const double *box_b, double tau) {
     return path_separation(box_a, box_b, tau, nullptr);
 }
+
+namespace {
+
+// Whether the depth at tau reaches target (path_depth >= target), stopping at the
+// first axis that says no.
+bool depth_reaches(const double *box_a, const double *box_b, double tau, double target) {
+    return path_separation(box_a, box_b, tau, nullptr, target) >= target;
+}
+
+}  // namespace
 
 void swept_bounds(const double *box, double *lo, double *hi) {
     const double *h = box + pr::kHalfExtents;
@@ -125,7 +135,9 @@ void swept_bounds(const double *box, double *lo, double *hi) {
         lo[i] = std::numeric_limits<double>::infinity();
         hi[i] = -lo[i];
     }
-    for (int k = 0; k <= 4; ++k) {
+    // A box that does not turn moves linearly: its end poses bound the step.
+    const int stride = box[pr::kAngle] == 0.0 ? 4 : 1;
+    for (int k = 0; k <= 4; k += stride) {
         const Pose P = box_pose(box, 0.25 * k);
         for (int i = 0; i < 3; ++i) {
             const double e = std::fabs(P.R[i][0]) * h[0] + std::fabs(P.R[i][1]) * h[1] + std::fabs(P.R[i][2]) * h[2];
@@ -156,14 +168,17 @@ double first_depth(const double *box_a, const double *box_b, double tau_from, do
             lo = t;
             continue;
         }
-        if (path_depth(box_a, box_b, t) >= target) { hi = t; break; }
+        if (depth_reaches(box_a, box_b, t, target)) {
+            hi = t;
+            break;
+        }
         lo = t;
     }
     if (std::isnan(hi)) return hi;
     for (int it = 0; it < 200 && hi - lo > 1e-15; ++it) {
         const double mid = 0.5 * (lo + hi);
         if (mid <= lo || mid >= hi) break;
-        if (path_depth(box_a, box_b, mid) >= target) hi = mid; else lo = mid;
+        if (depth_reaches(box_a, box_b, mid, target)) hi = mid; else lo = mid;
     }
     return hi;
 }

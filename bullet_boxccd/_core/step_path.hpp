@@ -73,7 +73,10 @@ double path_depth(const double *box_a, const double *box_b, double tau);
 
 // path_depth, with the axis that gives it (unit, from A towards B): for an overlap,
 // the direction in which B is pushed out along the least overlap.
-double path_separation(const double *box_a, const double *box_b, double tau, double *axis);
+// With a floor: stops at the first axis whose overlap is below it (the depth is then
+// below the floor, and the axis is that one).
+double path_separation(const double *box_a, const double *box_b, double tau, double *axis,
+                       double floor = -std::numeric_limits<double>::infinity());
 
 // The first tau in (tau_from, 1] at which the depth reaches `target`, NaN if it
 // does not. A geometric look-ahead (offsets 2^-k of the rest of the step) finds

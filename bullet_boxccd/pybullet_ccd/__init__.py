@@ -161,18 +161,34 @@ class BoxCCD:
         if self._quiet and last_serial() == self._epoch and raw.getNumBodies(physicsClientId=cid) == self.world.count:
             # Nothing changed in the world since the last step: step, read the velocities
             # (the one read per body pybullet's API forces), and stop there if nothing is fast.
+            t0 = time.perf_counter()
             raw.stepSimulation(physicsClientId=cid)
+            t1 = time.perf_counter()
+            self.stats.seconds["step"] += t1 - t0
             st = self._state
             fast = self._sweeper.fast(st.rows, self._dt, st.moving, st.twists())
-            if fast is None:
-                self.stats.steps += 1
-                return []
-            events = self._step(self._dt, 0.0, self._dt, fast=fast)
+            events = [] if fast is None else self._quiet_sweep(fast, t1)
         else:
             events = self._full_step()
         self._quiet = self._substeps == 1 and not self._state.with_velocity and not self.impacts.watch
         self._epoch = last_serial()
         self.stats.steps += 1
+        return events
+
+    def _quiet_sweep(self, fast, t0):
+        """The sweep of a step taken in a world where nothing changed (no user move, no
+        kinematic velocity, one substep): what ``_step`` does then, without its checks."""
+        if self.exact_time:
+            return self._step(self._dt, 0.0, self._dt, fast=fast)
+        st, t, dt = self._state, self.world.tables, self._dt
+        st.begin_kinematic((), ())
+        sw = sweep(self.cid, t, st, dt, self._sweeper, self.fit_tolerance, self.tolerances, self.penetration,
+                   self.stats, t0, fast)
+        if sw is None:
+            return []
+        t3 = time.perf_counter()
+        events, _ = self.impacts.resolve(sw, None, t, st, dt, set(), self._gravity)
+        self.stats.seconds["rewind"] += time.perf_counter() - t3
         return events
 
     def _full_step(self):

@@ -53,6 +53,7 @@ class FrameState:
         self.rows[:, 6] = 1.0
         static = np.flatnonzero(tables.kind == STATIC).tolist()
         _core.put_poses(self.rows, static, read_poses(cid, tables.keys, static))
+        self._static = set(static)
         self.moving = list(tables.moving)  # frames whose velocity is read at every step
         self.with_velocity = set()  # static frames the user gave a velocity (Bullet moves them)
         self.kinematic = []  # static frames the user moved before the current step, or that have a velocity
@@ -74,8 +75,8 @@ class FrameState:
 
     def stale(self, frames):
         """Those of ``frames`` whose poses in ``rows`` are not this step's."""
-        kind = self.tables.kind
-        return [f for f in frames if f not in self.fresh and kind[f] != STATIC]
+        fresh, static = self.fresh, self._static
+        return [f for f in frames if f not in fresh and f not in static]
 
     def begin_kinematic(self, moved_static, with_velocity):
         """Before the step: note the static frames the user moved since the last step and
