@@ -21,11 +21,15 @@ no facet polynomial. It works on the world vertices of both boxes, each a quadra
   tried). A negative SAT gap is only where to look.
 
 Every float64 value carries a rounding bound, ``c * eps * R`` with R a bound of every
-term's magnitude over the range; a verdict needs its quantity to clear that bound, so
-**every verdict is certain** (up to the stated margins). The float tier first moves the
-scene so that A's position coefficient is the origin (translating both boxes changes no
-distance; B's shifted coordinate is rounded by at most eps of the shift's result, which
-the bound covers), so "far from the origin" costs no precision.
+term's magnitude, and a verdict needs its quantity to clear that bound, so **every
+verdict is certain** (up to the stated margins). To keep R small, the float tier first
+re-centres each query, in extended precision (numpy ``longdouble``; where that is plain
+double the bound below simply becomes eps * R): time is measured from ``tc`` (the end of
+the range nearer zero when the range does not contain zero, so ``t - tc`` is exact for
+every t in it, by Sterbenz), and space from A's first vertex at ``tc`` (translating both
+boxes changes no distance). The vertex coefficients are then rounded to float64; the
+re-centring's own error, at most ``32 * eps_ext * R_orig`` per coordinate, joins every
+bound. So a scene far from the origin, or a range far from t = 0, costs no precision.
 
 Verdicts (``t_s`` the solver's answer, NaN for none, on the range [t0, t1]):
 
@@ -44,7 +48,9 @@ whose bound does not settle the question are halved, round after round (vectoris
 all open intervals of all queries), until every query has a verdict, a query exceeds its
 interval budget or the rounds run out. Queries left doubtful go to the same search in
 mpmath at ``mp_prec`` bits (``numpy`` object arrays of ``mpf``: the code path is the same),
-starting from the intervals still open, without the shift (exact at that precision).
+starting from the intervals still open, on the exact inputs (no re-centring). An interval
+the float64 tier would have settled but for its rounding bound is parked for mpmath at
+once rather than halved further.
 
 Tolerances (``CheckTolerances``) and why:
 
@@ -159,6 +165,38 @@ def _magnitude(lo, hi, coeffs, tmax):
     return (per_k * (tmax ** np.arange(3))[:, None]).sum(axis=1).max(axis=1)
 
 
+def _reach(X, smax):
+    """(n,) bound of |vertex coordinate| over |s| <= smax from coefficients (n, 3, 8, 3)."""
+    return (np.abs(X) * (smax ** np.arange(3))[:, None, None]).sum(axis=1).max(axis=(1, 2))
+
+
+def _time_origin(t0, t1):
+    """A float tc such that t - tc is exact for every float t in [t0, t1] (Sterbenz), and small."""
+    span = t1 - t0
+    return t0 if t0 >= span else (t1 if t1 <= -span else 0.0)
+
+
+def _recentred(batch, tc):
+    """Vertex coefficients of both boxes in time t - tc and space minus A's first vertex at tc,
+    computed in longdouble and rounded to float64; and the bound of that computation's
+    error on a vertex position, per query."""
+    ext = np.longdouble
+    eps_ext = float(np.finfo(ext).eps)  # the double eps where longdouble is double
+    X = []
+    for lo, hi, c in ((batch.lo_a, batch.hi_a, batch.coeffs_a), (batch.lo_b, batch.hi_b, batch.coeffs_b)):
+        x = _vertex_coeffs(lo.astype(ext), hi.astype(ext), np.asarray(c, ext))
+        X.append(np.stack([x[:, 0] + tc * (x[:, 1] + tc * x[:, 2]), x[:, 1] + 2 * tc * x[:, 2], x[:, 2]], axis=1))
+    origin = X[0][:, 0, 0].astype(float)[:, None, :]  # A's first vertex at tc, as a float
+    for x in X:
+        x[:, 0] -= origin
+    # Each step above rounds once per term, and |tc| + |t - tc| <= tmax for t in the range, so a
+    # vertex position at t is off by at most ~8 eps_ext R_orig (R_orig: the terms at tmax); 4x that.
+    tmax = max(abs(batch.t_range[0]), abs(batch.t_range[1]))
+    r_orig = np.maximum(_magnitude(batch.lo_a, batch.hi_a, batch.coeffs_a, tmax),
+                        _magnitude(batch.lo_b, batch.hi_b, batch.coeffs_b, tmax))
+    return X[0].astype(float), X[1].astype(float), 32 * eps_ext * r_orig
+
+
 def _at(X, t):
     """(m, 8, 3) vertex positions from coefficients (m, 3, 8, 3) at times t (m,)."""
     t = t[:, None, None]
@@ -250,11 +288,13 @@ def _witness_depth(VA, VB, num):
 # ---------------------------------------------------------------- the search
 @dataclass
 class _Problem:
-    """One tier's view of n queries: vertex coefficients in its arithmetic, and the bounds."""
+    """One tier's view of n queries: vertex coefficients in its arithmetic (in time t - tc),
+    the questions asked and the bounds, and what has been found so far."""
 
     num: object
     XA: np.ndarray  # (n, 3, 8, 3)
     XB: np.ndarray
+    tc: float  # the coefficients' time origin
     ts: np.ndarray  # (n,) the solver's answers (NaN: none), as floats
     hit: np.ndarray
     cut: np.ndarray  # certify apart on [t0, cut]: ts - late for answers, t1 otherwise
@@ -262,14 +302,18 @@ class _Problem:
     err_gap: np.ndarray  # rounding bound of a SAT value or interval bound
     err_overlap: np.ndarray  # rounding bound of a witness depth
     ghost_open: np.ndarray  # answers not yet shown to touch within tau (a SAT gap <= tau somewhere up to ts)
-    verdict: np.ndarray  # -1 while undecided
-    evidence: np.ndarray  # the time of a certified overlap (MISS, LATE)
-    doubtful: np.ndarray
+
+    def __post_init__(self):
+        n = len(self.ts)
+        self.verdict = np.full(n, -1)  # -1 while undecided
+        self.evidence = np.full(n, np.nan)  # the time of a certified overlap (MISS, LATE)
+        self.doubtful = np.zeros(n, bool)  # gave up: budget or precision exhausted
+        self.parked = np.zeros(n, bool)  # has intervals only rounding keeps open (for the next tier)
 
     def sample(self, q, t):
         """SAT at (query q, time t) pairs; certifies overlaps and touching as it goes. Times
         are compared in the tier's own arithmetic (a float cut is exact in mpmath)."""
-        VA, VB = _at(self.XA[q], t), _at(self.XB[q], t)
+        VA, VB = _at(self.XA[q], t - self.tc), _at(self.XB[q], t - self.tc)
         g, u, side = _sat(VA, VB, self.num)
         look = (g <= 0) & (self.verdict[q] < 0)
         if look.any():
@@ -281,7 +325,8 @@ class _Problem:
             self.verdict[qq[miss]] = MISS
             self.verdict[qq[late]] = LATE
             self.evidence[qq[miss | late]] = self.num.tofloat(tt[miss | late]).astype(float)
-        touch = self.hit[q] & (t <= self.ts[q]) & (g <= self.tau[q] - self.err_gap[q])
+        upto = np.where(self.hit, self.ts, -np.inf)[q]  # no NaN in comparisons with mpf objects
+        touch = self.hit[q] & (t <= upto) & (g <= self.tau[q] - self.err_gap[q])
         self.ghost_open[q[touch]] = False
         return g, u, side
 
@@ -296,37 +341,53 @@ class _Problem:
         return lb
 
     def _along(self, q, ta, tb, u, side):
+        m = _interval_min(self.XA[q], self.XB[q], u, side, ta - self.tc, tb - self.tc)
         # As a float: rounding is monotone, so lb > x (a float) still implies it exactly.
-        return self.num.tofloat(_interval_min(self.XA[q], self.XB[q], u, side, ta, tb) - self.err_gap[q])
+        return self.num.tofloat(m - self.err_gap[q]).astype(float)
 
-    def open_(self, q, ta, lb):
-        """Intervals that do not settle their query's question yet."""
+    def open_(self, q, ta, lb, slack=0.0):
+        """Intervals that do not settle their query's question yet (with ``slack`` added to
+        their bounds: the rounding bound, to ask whether only rounding keeps them open)."""
+        lb = lb + slack
         need_apart = (~self.hit[q] | (ta < self.cut[q])) & ~(lb > 0)
         need_ghost = self.hit[q] & self.ghost_open[q] & ~(lb > self.tau[q])
         return (self.verdict[q] < 0) & ~self.doubtful[q] & (need_apart | need_ghost)
 
 
 def _search(P: _Problem, q, ta, tb, ends, max_rounds, max_intervals):
-    """Halve the open intervals round after round. Returns the open intervals (q, ta, tb) of
-    the queries left doubtful."""
+    """Halve the open intervals round after round. Returns the intervals (q, ta, tb) left
+    for the next tier: those parked (open only by rounding) and all open ones of the
+    queries that gave up (too many intervals, no room to halve, or out of rounds)."""
     left = []
+
+    def hand_on(mask):
+        nonlocal q, ta, tb, ends
+        left.append((q[mask], ta[mask], tb[mask]))
+        keep = ~mask
+        q, ta, tb = q[keep], ta[keep], tb[keep]
+        ends = tuple(tuple(x[keep] for x in e) for e in ends)
+
     for rnd in range(max_rounds + 1):
         lb = P.bound(q, ta, tb, ends)
         keep = P.open_(q, ta, lb)
-        q, ta, tb = q[keep], ta[keep], tb[keep]
+        q, ta, tb, lb = q[keep], ta[keep], tb[keep], lb[keep]
         ends = tuple(tuple(x[keep] for x in e) for e in ends)
+        # Halving brings the bound towards the smaller end value; when even that is within a few
+        # rounding bounds of deciding, only more precision helps: park the interval.
+        err = P.num.tofloat(P.err_gap[q]).astype(float)
+        ends_low = P.num.tofloat(np.minimum(ends[0][0], ends[1][0])).astype(float)
+        parked = ~P.open_(q, ta, lb, slack=2 * err) & P.open_(q, ta, ends_low - 4 * err)
+        P.parked[q[parked]] = True
+        hand_on(parked)
         mid = (ta + tb) / 2
         stuck = (mid <= ta) | (mid >= tb)  # no room left at this precision
         crowded = np.bincount(q, minlength=len(P.ts)) > max_intervals
         give_up = crowded[q] | np.isin(q, q[stuck]) | (rnd == max_rounds)
-        if give_up.any():
-            P.doubtful[q[give_up]] = True
-            left.append((q[give_up], ta[give_up], tb[give_up]))
-            keep = ~give_up
-            q, ta, tb, mid = q[keep], ta[keep], tb[keep], mid[keep]
-            ends = tuple(tuple(x[keep] for x in e) for e in ends)
+        P.doubtful[q[give_up]] = True
+        hand_on(give_up | P.doubtful[q])
         if len(q) == 0:
             break
+        mid = (ta + tb) / 2
         m = P.sample(q, mid)
         q = np.concatenate([q, q])
         ta, tb = np.concatenate([ta, mid]), np.concatenate([mid, tb])
@@ -339,7 +400,7 @@ def _search(P: _Problem, q, ta, tb, ends, max_rounds, max_intervals):
 
 def _finish(P: _Problem):
     """Verdicts of the queries whose every interval settled."""
-    done = (P.verdict < 0) & ~P.doubtful
+    done = (P.verdict < 0) & ~P.doubtful & ~P.parked
     P.verdict[done & ~P.hit] = CLEAR_MISS
     P.verdict[done & P.hit & P.ghost_open] = FALSE_HIT
     P.verdict[done & P.hit & ~P.ghost_open] = HIT
@@ -360,9 +421,9 @@ class Checked:
     mp: np.ndarray
 
 
-def _sizes(X, t):
-    """(n,) half the sum of the three edge lengths, and the longest edge, of boxes at t."""
-    V = _at(X, np.full(len(X), t))
+def _sizes(X, s):
+    """(n,) half the sum of the three edge lengths, and the longest edge, of boxes at s."""
+    V = _at(X, np.full(len(X), s))
     lengths = np.sqrt((_edges(V) ** 2).sum(-1))
     return 0.5 * lengths.sum(-1), lengths.max(-1)
 
@@ -396,23 +457,18 @@ def check(batch: QueryBatch, t_solver, tol: CheckTolerances = DEFAULT) -> Checke
     late = tol.late_rel * (t1 - t0)
     cut = np.where(hit, ts - late, t1)
     t_end = np.where(hit, ts, t1)
-    tmax = max(abs(t0), abs(t1))
     eps = _Float.eps
 
-    ca, cb = np.array(batch.coeffs_a, float), np.array(batch.coeffs_b, float)
-    r_world = np.maximum(_magnitude(batch.lo_a, batch.hi_a, ca, tmax), _magnitude(batch.lo_b, batch.hi_b, cb, tmax))
-    XA, XB = _vertex_coeffs(batch.lo_a, batch.hi_a, ca), _vertex_coeffs(batch.lo_b, batch.hi_b, cb)
-    (half_a, long_a), (half_b, long_b) = _sizes(XA, t0), _sizes(XB, t0)
+    tmax = max(abs(t0), abs(t1))
+    r_world = np.maximum(_magnitude(batch.lo_a, batch.hi_a, batch.coeffs_a, tmax),
+                         _magnitude(batch.lo_b, batch.hi_b, batch.coeffs_b, tmax))
+    tc = _time_origin(t0, t1)
+    XA, XB, err_prep = _recentred(batch, tc)
+    (half_a, long_a), (half_b, long_b) = _sizes(XA, t0 - tc), _sizes(XB, t0 - tc)
     tau = tol.touch_rel * (half_a + half_b) + tol.touch_round * eps * r_world
-
-    # Float tier, in a frame whose origin is A's position coefficient.
-    shift = ca[:, 0, :3, 3].copy()
-    ca[:, 0, :3, 3] -= shift
-    cb[:, 0, :3, 3] -= shift
-    r = np.maximum(_magnitude(batch.lo_a, batch.hi_a, ca, tmax), _magnitude(batch.lo_b, batch.hi_b, cb, tmax))
-    P = _Problem(_Float, _vertex_coeffs(batch.lo_a, batch.hi_a, ca), _vertex_coeffs(batch.lo_b, batch.hi_b, cb),
-                 ts, hit, cut, tau, tol.gap_round * eps * r, tol.overlap_round * eps * r, hit.copy(),
-                 np.full(n, -1), np.full(n, np.nan), np.zeros(n, bool))
+    r = np.maximum(_reach(XA, max(abs(t0 - tc), abs(t1 - tc))), _reach(XB, max(abs(t0 - tc), abs(t1 - tc))))
+    P = _Problem(_Float, XA, XB, tc, ts, hit, cut, tau, tol.gap_round * eps * r + 2 * err_prep,
+                 tol.overlap_round * eps * r + 4 * err_prep, hit.copy())
     q, t = _initial_samples(t0, t_end, cut, hit, late, tol.grid, tol.ladder)
     g, u, side = P.sample(q, t)
     pair = q[1:] == q[:-1]
@@ -425,18 +481,18 @@ def check(batch: QueryBatch, t_solver, tol: CheckTolerances = DEFAULT) -> Checke
     left = _search(P, q[i], t[i], t[j], ((g[i], u[i], side[i]), (g[j], u[j], side[j])), tol.max_rounds,
                    tol.max_intervals)
     _finish(P)
-    used_mp = P.doubtful.copy()
-    if P.doubtful.any():
+    used_mp = (P.doubtful | P.parked) & (P.verdict < 0)
+    if used_mp.any():
         _mp_tier(batch, P, left, tol)
     P.verdict[P.verdict < 0] = UNRESOLVED
     return Checked(P.verdict, P.evidence, early, used_mp)
 
 
 def _mp_tier(batch, P: _Problem, left, tol):
-    """The doubtful queries again at ``tol.mp_prec`` bits, from their open intervals."""
+    """The doubtful queries again at ``tol.mp_prec`` bits, from the intervals handed on."""
     q, ta, tb = left
     few = np.bincount(q, minlength=len(P.ts)) <= tol.mp_max_intervals
-    todo = np.nonzero(P.doubtful & few)[0]
+    todo = np.nonzero((P.doubtful | P.parked) & (P.verdict < 0) & few)[0]
     if len(todo) == 0:
         return
     num = _MP(tol.mp_prec)
@@ -445,18 +501,16 @@ def _mp_tier(batch, P: _Problem, left, tol):
         XA = _vertex_coeffs(num.arr(sub.lo_a), num.arr(sub.hi_a), num.arr(sub.coeffs_a))
         XB = _vertex_coeffs(num.arr(sub.lo_b), num.arr(sub.hi_b), num.arr(sub.coeffs_b))
         tmax = max(abs(sub.t_range[0]), abs(sub.t_range[1]))
-        r = np.maximum(_magnitude(sub.lo_a, sub.hi_a, sub.coeffs_a, tmax),
-                       _magnitude(sub.lo_b, sub.hi_b, sub.coeffs_b, tmax))
-        # float64 magnitudes, widened by 2: they bound the exact terms to within float rounding
-        Q = _Problem(num, XA, XB, P.ts[todo], P.hit[todo], P.cut[todo], P.tau[todo],
-                     2 * tol.gap_round * num.eps * r, 2 * tol.overlap_round * num.eps * r, P.ghost_open[todo].copy(),
-                     np.full(len(todo), -1), np.full(len(todo), np.nan), np.zeros(len(todo), bool))
+        # float64 magnitudes, doubled: they bound the exact terms to within float rounding
+        r = 2 * np.maximum(_magnitude(sub.lo_a, sub.hi_a, sub.coeffs_a, tmax),
+                           _magnitude(sub.lo_b, sub.hi_b, sub.coeffs_b, tmax))
+        Q = _Problem(num, XA, XB, 0.0, P.ts[todo], P.hit[todo], P.cut[todo], P.tau[todo],
+                     tol.gap_round * num.eps * r, tol.overlap_round * num.eps * r, P.ghost_open[todo].copy())
         index = np.full(len(P.ts), -1)
         index[todo] = np.arange(len(todo))
         mine = index[q] >= 0
         qq, a, b = index[q[mine]], num.arr(ta[mine]), num.arr(tb[mine])
-        ends = (Q.sample(qq, a), Q.sample(qq, b))
-        _search(Q, qq, a, b, ends, tol.mp_max_rounds, 4 * tol.mp_max_intervals)
+        _search(Q, qq, a, b, (Q.sample(qq, a), Q.sample(qq, b)), tol.mp_max_rounds, 4 * tol.mp_max_intervals)
         _finish(Q)
-    P.verdict[todo] = np.where(Q.verdict >= 0, Q.verdict, -1)
+    P.verdict[todo] = Q.verdict  # still -1 where mpmath did not settle it either
     P.evidence[todo] = Q.evidence
