@@ -13,12 +13,14 @@ no facet polynomial. It works on the world vertices of both boxes, each a quadra
   ``u.(b_j(t) - a_i(t))`` is a quadratic in t, so the separation's minimum over [ta, tb]
   is the minimum of 64 quadratics, each at its ends or its vertex: exact, not sampled.
   The axes tried on an interval are the best axes at its two ends.
-* **Overlap** (a witness, not a negative gap): a point on an edge of one box whose depth
-  inside the other box (its distance to the nearest face plane, from the vertex's
-  coordinates in that box's edge frame) is positive. Two convex polyhedra that intersect
-  have an edge of one meeting the other, so some edge point is a witness; its depth is
-  maximised over the edge (a concave piecewise-linear function: its breakpoints are
-  tried). A negative SAT gap is only where to look.
+* **Overlap** (a witness, not a negative gap): a point inside both boxes by more than the
+  rounding bound, its depth measured from its coordinates in each box's edge frame. Two
+  convex polyhedra that intersect have an edge of one meeting the other: the checker
+  tries the deepest point of each edge inside the other box (a concave piecewise-linear
+  function along the edge: its breakpoints are tried), and the centroid of the ends of
+  those edge parts (inside both boxes by convexity; it is the witness when faces are
+  coplanar and every edge point lies on the other box's surface). A negative SAT gap
+  is only where to look.
 
 Every float64 value carries a rounding bound, ``c * eps * R`` with R a bound of every
 term's magnitude, and a verdict needs its quantity to clear that bound, so **every
@@ -258,31 +260,77 @@ def _interval_min(XA, XB, u, side, ta, tb):
     return np.minimum(low, vertex.reshape(len(u), 64).min(-1))
 
 
-def _depth_along_edges(VP, VQ, num):
-    """(m,) the largest depth inside box Q (vertices (m, 8, 3)) of a point on an edge of P."""
-    q0 = VQ[:, 0]
-    e = _edges(VQ)
-    nrm = _cross(e[:, [1, 2, 0]], e[:, [2, 0, 1]])  # (m, 3, 3): normal to the faces across edge k
-    vol = (nrm[:, 0] * e[:, 0]).sum(-1)  # signed volume (the same for every k)
-    height = np.abs(vol)[:, None] / num.sqrt((nrm * nrm).sum(-1))  # (m, 3): Q's width across edge k
-    lam = ((VP - q0[:, None]) @ np.swapaxes(nrm, 1, 2)) / vol[:, None, None]  # (m, 8, 3): in Q's edge frame
-    la, lb = lam[:, _EDGE_I], lam[:, _EDGE_J]  # (m, 12, 3) at each edge's two ends
-    h = height[:, None, :]
-    alpha = np.concatenate([la * h, (1 - la) * h], axis=-1)  # distance inside each face plane at s = 0
+def _frame(V, num):
+    """Box Q (vertices (m, 8, 3)) as its first vertex, the normals to its three face pairs,
+    its signed volume and its widths across them: coordinates lam = n_k.(x - q0) / vol run
+    over [0, 1] inside Q, and lam_k * width_k is the distance past the face lam_k = 0."""
+    e = _edges(V)
+    nrm = _cross(e[:, [1, 2, 0]], e[:, [2, 0, 1]])  # (m, 3, 3): normal k is across edge k
+    vol = (nrm[:, 0] * e[:, 0]).sum(-1)
+    return V[:, 0], nrm, vol, np.abs(vol)[:, None] / num.sqrt((nrm * nrm).sum(-1))
+
+
+def _coords(X, frame):
+    """(m, p, 3) coordinates of points X (m, p, 3) in a box's edge frame."""
+    q0, nrm, vol, _ = frame
+    return ((X - q0[:, None]) @ np.swapaxes(nrm, 1, 2)) / vol[:, None, None]
+
+
+def _inside(lam, width):
+    """Distance inside the box of points with coordinates lam (m, p, 3), negative outside."""
+    w = width[:, None, :]
+    return np.minimum(lam * w, (1 - lam) * w).min(-1)
+
+
+def _edge_depth(la, lb, width):
+    """(m,) the largest depth inside Q of a point on one of P's edges, given the edges' end
+    coordinates la, lb (m, 12, 3) in Q's frame: the depth along an edge is concave and
+    piecewise linear in the edge parameter, so its maximum is at an end or a breakpoint."""
+    h = width[:, None, :]
+    alpha = np.concatenate([la * h, (1 - la) * h], axis=-1)  # distance past each face plane at s = 0
     beta = np.concatenate([(lb - la) * h, (la - lb) * h], axis=-1)  # and its slope along the edge
     a1, a2 = alpha[..., _PAIRS[:, 0]], alpha[..., _PAIRS[:, 1]]
     den = beta[..., _PAIRS[:, 0]] - beta[..., _PAIRS[:, 1]]
-    s = (a2 - a1) / np.where(den != 0, den, 1)
-    s = np.where(den != 0, np.minimum(np.maximum(s, 0), 1), 0)
+    s = np.where(den != 0, np.minimum(np.maximum((a2 - a1) / np.where(den != 0, den, 1), 0), 1), 0)
     ends = s[..., :1] * 0
-    cand = np.concatenate([ends, ends + 1, s], axis=-1)  # (m, 12, 17): the edge's ends and breakpoints
+    cand = np.concatenate([ends, ends + 1, s], axis=-1)  # (m, 12, 17)
     depth = (alpha[..., None, :] + cand[..., None] * beta[..., None, :]).min(-1)
-    return depth.reshape(len(VP), -1).max(-1)
+    return depth.reshape(len(la), -1).max(-1)
+
+
+def _clipped(VP, la, lb):
+    """The parts of P's edges inside Q (Liang-Barsky on Q's coordinates): their end points
+    (m, 24, 3) and which exist (m, 24)."""
+    d = lb - la
+    flat = d == 0
+    dd = np.where(flat, 1, d)
+    s0, s1 = -la / dd, (1 - la) / dd
+    enter = np.where(flat, np.where((la >= 0) & (la <= 1), -np.inf, np.inf), np.minimum(s0, s1)).max(-1)
+    leave = np.where(flat, np.where((la >= 0) & (la <= 1), np.inf, -np.inf), np.maximum(s0, s1)).min(-1)
+    lo, hi = np.maximum(enter, 0), np.minimum(leave, 1)
+    ok = lo <= hi
+    lo, hi = np.where(ok, lo, 0), np.where(ok, hi, 0)
+    a, e = VP[:, _EDGE_I], VP[:, _EDGE_J] - VP[:, _EDGE_I]
+    pts = np.concatenate([a + lo[..., None] * e, a + hi[..., None] * e], axis=1)
+    return pts, np.concatenate([ok, ok], axis=1)
 
 
 def _witness_depth(VA, VB, num):
-    """(m,) depth of the best witness: the deeper of A's edges in B and B's edges in A."""
-    return np.maximum(_depth_along_edges(VA, VB, num), _depth_along_edges(VB, VA, num))
+    """(m,) depth of the best overlap witness found: a point on an edge of one box inside the
+    other (in P by construction), or the centroid of the ends of the edge parts inside
+    the other box (in both, by convexity; its depth is measured in both), for overlaps
+    whose edges all lie in the other box's faces (coplanar faces)."""
+    fa, fb = _frame(VA, num), _frame(VB, num)
+    a_in_b, b_in_a = _coords(VA, fb), _coords(VB, fa)
+    best = np.maximum(_edge_depth(a_in_b[:, _EDGE_I], a_in_b[:, _EDGE_J], fb[3]),
+                      _edge_depth(b_in_a[:, _EDGE_I], b_in_a[:, _EDGE_J], fa[3]))
+    pa, oka = _clipped(VA, a_in_b[:, _EDGE_I], a_in_b[:, _EDGE_J])
+    pb, okb = _clipped(VB, b_in_a[:, _EDGE_I], b_in_a[:, _EDGE_J])
+    pts, ok = np.concatenate([pa, pb], axis=1), np.concatenate([oka, okb], axis=1)
+    count = ok.sum(-1)
+    c = (pts * ok[..., None]).sum(1) / np.maximum(count, 1)[:, None]
+    depth_c = np.minimum(_inside(_coords(c[:, None], fa), fa[3]), _inside(_coords(c[:, None], fb), fb[3]))[:, 0]
+    return np.maximum(best, np.where(count > 0, depth_c, best))
 
 
 # ---------------------------------------------------------------- the search
