@@ -67,7 +67,8 @@ def map_unordered(fn, jobs, workers=None, address=None, max_retries=3):
     own = not ray.is_initialized()
     if own:
         env = {k: v for k, v in os.environ.items() if k == FAULT_ENV}
-        common = dict(logging_level="ERROR", runtime_env={"env_vars": env} if env else None)
+        # Workers' own output (pybullet's banner, per task) stays in Ray's logs; results and errors come back.
+        common = dict(logging_level="ERROR", log_to_driver=False, runtime_env={"env_vars": env} if env else None)
         if address:  # an existing cluster brings its own resources
             ray.init(address=address, **common)
         else:

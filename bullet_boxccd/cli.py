@@ -72,6 +72,16 @@ def _count(text: str) -> int:
     return int(v)
 
 
+def _at_least(low: int):
+    def parse(text: str) -> int:
+        v = _count(text)
+        if v < low:
+            raise argparse.ArgumentTypeError(f"expected a whole number >= {low}, got {text}")
+        return v
+
+    return parse
+
+
 def _families(values) -> list:
     from .validate.families import FAMILIES
 
@@ -83,7 +93,7 @@ def _families(values) -> list:
 
 
 def _distributed(p) -> None:
-    p.add_argument("--workers", type=int, default=None,
+    p.add_argument("--workers", type=_at_least(0), default=None,
                    help="tasks at a time (default: every CPU of the local Ray or of the cluster); 0: in this "
                         "process, without Ray")
     p.add_argument("--address", default=None,
@@ -112,6 +122,21 @@ def run_validate(args) -> int:
     return 1 if summary.failures else 0
 
 
+def run_sweep(args) -> int:
+    from .validate.sweep import summary_text, sweep, write_outputs
+
+    rows, tunnels, meta = sweep(args.boxes, args.seed, args.trials, args.window, args.quick, args.workers,
+                                args.address, args.report, show_progress=not args.no_progress)
+    print(summary_text(rows, tunnels, meta))
+    written = write_outputs(rows, args.csv, args.png, args.boxes)
+    where = "in this process" if args.workers == 0 and not args.address else "on Ray"
+    n_cfg = len(rows) // len(args.boxes)
+    print(f"\nwritten: {', '.join(written)}")
+    print(f"swept {n_cfg} configurations x {len(args.boxes)} scenes x {meta['trials']} seeds: {meta['tasks_run']} "
+          f"trials run now in {meta['seconds']:.0f} s ({where})")
+    return 0
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(prog="boxccd", description="Exact box CCD for pybullet.")
     sub = ap.add_subparsers(dest="command", required=True)
@@ -122,14 +147,26 @@ def main(argv=None) -> int:
     t.add_argument("case")
     v = sub.add_parser("validate", help="seeded randomized queries, solved and checked by an independent checker; "
                                         "exit status 1 if any fails")
-    v.add_argument("--queries", type=_count, default=100_000, help="how many (default 1e5)")
+    v.add_argument("--queries", type=_at_least(1), default=100_000, help="how many (default 1e5)")
     v.add_argument("--families", nargs="+", default=None, help="query families (default: all; space or comma "
                                                                 "separated)")
     v.add_argument("--seed", type=int, default=0)
-    v.add_argument("--shard-size", type=_count, default=10_000, help="queries per task (default 1e4)")
+    v.add_argument("--shard-size", type=_at_least(1), default=10_000, help="queries per task (default 1e4)")
     v.add_argument("--cases", default=None, help="directory for failing cases (default: next to the report, "
                                                  "else ./boxccd_cases)")
     _distributed(v)
+    w = sub.add_parser("sweep", help="the plugin's trade-off grid (benchmarks/tradeoff.py): every (configuration, "
+                                     "scene, seed) a task in its own pybullet client; CSV and Pareto plot")
+    w.add_argument("--boxes", type=_at_least(5), nargs="+", default=[100],
+                   help="scenes: dynamic boxes in each, 4 of them projectiles (default 100)")
+    w.add_argument("--seed", type=int, default=2024, help="first seed (trials use seed, seed + 1, ...)")
+    w.add_argument("--trials", type=_at_least(1), default=None, help="seeds per scene (default 10; 2 with --quick)")
+    w.add_argument("--window", type=_at_least(1), default=None, help="steps per trial (default 120; 72 with --quick)")
+    w.add_argument("--quick", action="store_true", help="fewer configurations, 2 trials of 72 steps")
+    w.add_argument("--csv", default="tradeoff.csv")
+    w.add_argument("--png", default="tradeoff.png", help="the Pareto plot (one per scene: _<boxes> before the "
+                                                          "suffix when there are several)")
+    _distributed(w)
     args, rest = ap.parse_known_args(argv)
     if args.command == "demo":
         if args.list or not args.name:
@@ -143,6 +180,8 @@ def main(argv=None) -> int:
         solve_case(args.case)
     elif args.command == "validate":
         return run_validate(args)
+    elif args.command == "sweep":
+        return run_sweep(args)
     return 0
 
 

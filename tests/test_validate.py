@@ -10,12 +10,12 @@ CPUs for this module and shut it down at the end (no process left behind).
 from __future__ import annotations
 
 import json
-import os
 import re
 import sys
 
 import numpy as np
 import pytest
+import ray_local
 from oracle import Case, mp_gap
 
 from bullet_boxccd import cli, time_of_impact_batch
@@ -24,6 +24,8 @@ from bullet_boxccd.validate import shards
 from bullet_boxccd.validate.casefile import read_case
 from bullet_boxccd.validate.families import FAMILIES, QueryBatch, ballistic, static
 from bullet_boxccd.validate.report import ReportMismatchError
+
+local_ray = ray_local.local_ray  # the module's local Ray (a fixture)
 
 SMALL = 120  # queries per family in the checker tests
 
@@ -212,24 +214,6 @@ def test_ray_missing_is_a_clear_error(monkeypatch):
 
 
 # ------------------------------------------------------------------ on Ray
-@pytest.fixture(scope="module")
-def local_ray(tmp_path_factory):
-    ray = pytest.importorskip("ray")
-    import psutil
-
-    from bullet_boxccd._ray import FAULT_ENV
-
-    fault = tmp_path_factory.mktemp("fault") / "kill"
-    os.environ[FAULT_ENV] = str(fault)
-    ray.init(num_cpus=2, include_dashboard=False, logging_level="ERROR",
-             runtime_env={"env_vars": {FAULT_ENV: str(fault)}})
-    yield fault
-    ray.shutdown()
-    del os.environ[FAULT_ENV]
-    gone, alive = psutil.wait_procs(psutil.Process().children(recursive=True), timeout=20)
-    assert not alive, f"Ray left processes behind: {alive}"
-
-
 def test_two_workers_equal_in_process_bit_for_bit(tmp_path, local_ray):
     one, _ = run(tmp_path, "inproc.jsonl")
     two, _ = run(tmp_path, "ray.jsonl", workers=2)

@@ -30,6 +30,7 @@ from .casefile import case_name, case_text
 from .families import FAMILIES, make_batch
 from .report import Report
 from .runner import progress, run_jobs
+from .tables import markdown
 
 __all__ = ["FAMILY_ID", "COUNTS", "Summary", "run_shard", "validate", "summary_table", "last_line"]
 
@@ -105,11 +106,7 @@ class Summary(dict):
 def summary_table(s: Summary) -> str:
     head = ("family", "queries", "hits", "misses", "late", "false hits", "unresolved", "mpmath",
             "worst early (box sizes)")
-    rows = [(name, *(f"{t[k]:,}" for k in COUNTS), f"{t['worst_early']:.1e}") for name, t in s.items()]
-    widths = [max(len(str(x)) for x in col) for col in zip(head, *rows)]
-    line = "|".join("-" * (w + 2) for w in widths)
-    fmt = lambda r: "| " + " | ".join(str(x).ljust(w) for x, w in zip(r, widths)) + " |"  # noqa: E731
-    return "\n".join([fmt(head), f"|{line}|", *map(fmt, rows)])
+    return markdown(head, [(name, *(f"{t[k]:,}" for k in COUNTS), f"{t['worst_early']:.1e}") for name, t in s.items()])
 
 
 def last_line(s: Summary) -> str:
