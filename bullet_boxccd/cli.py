@@ -116,8 +116,9 @@ def run_validate(args) -> int:
               f"({run['queries_run'] / run['seconds']:,.0f} queries/s, {where})")
     if t["queries"] > run["queries_run"]:
         print(f"{t['queries'] - run['queries_run']:,} queries taken from {args.report}")
-    if summary.failures or t["unresolved"]:
-        print(f"case files of the failures and of some unresolved queries: {run['cases_dir']}/ (boxccd toi FILE)")
+    if summary.failures or t["unresolved"] or t["early"]:
+        print(f"case files of the failures (and of up to 20 unresolved and 20 early answers per shard and family): "
+              f"{run['cases_dir']}/ (boxccd toi FILE)")
     print(last_line(summary))
     return 1 if summary.failures else 0
 

@@ -25,11 +25,15 @@ def _num(x) -> str:
     return "null" if not np.isfinite(x) else format(x, ".20g")
 
 
-def _nested(a) -> str:
+def _nested(a, indent=4) -> str:
+    """Nested lists, one innermost row per line (a motion reads as three 4 x 4 blocks)."""
     a = np.asarray(a, dtype=float)
     if a.ndim == 0:
         return _num(a)
-    return "[" + ", ".join(_nested(x) for x in a) + "]"
+    if a.ndim == 1:
+        return "[" + ", ".join(_num(x) for x in a) + "]"
+    pad = "\n" + " " * (indent + 1)
+    return "[" + ("," + pad).join(_nested(x, indent + 1) for x in a) + "]"
 
 
 def case_name(family: str, seed: int, shard: int, index: int, verdict: str) -> str:

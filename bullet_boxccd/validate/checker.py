@@ -38,14 +38,20 @@ Verdicts (``t_s`` the solver's answer, NaN for none, on the range [t0, t1]):
 * ``CLEAR_MISS``: no answer, and the boxes are certified apart over all of [t0, t1].
 * ``MISS``: no answer, and an overlap is certified somewhere in [t0, t1].
 * ``HIT``: an answer, certified apart over [t0, t_s - late] (nothing earlier) and the
-  SAT gap at some sample up to t_s is within the touching tolerance (not a ghost).
+  SAT gap at some sample of the range is within the touching tolerance (not a ghost).
 * ``LATE``: an answer, and an overlap certified at some t < t_s - late.
 * ``FALSE_HIT`` (a ghost): an answer, and the boxes certified more than the touching
-  tolerance apart over all of [t0, t_s].
+  tolerance apart over all of [t0, t1]: they never touch. (An answer given while the
+  boxes are still apart, before a contact that does come, is early, not false: the
+  solver promises never late, and rounds early. ``Checked.early`` flags the answers
+  certified more than the touching tolerance apart at t_s, and ``early_gap`` measures
+  every answer's gap.)
 * ``UNRESOLVED``: none of the above could be certified within the budget.
 
 Search: per query, samples on a uniform grid over [t0, t_end] (t_end = t_s or t1) and, for
-answers, on a geometric ladder t_s - late * 4^k towards t_s; intervals between samples
+answers, on a geometric ladder t_s - late * 64^k towards t_s (and, for an answer whose gap
+at t_s exceeds the touching tolerance, a grid and ladder t_s + late * 64^k on [t_s, t1]
+too, where a ghost must be told from an early answer); intervals between samples
 whose bound does not settle the question are halved, round after round (vectorised over
 all open intervals of all queries), until every query has a verdict, a query exceeds its
 interval budget or the rounds run out. Queries left doubtful go to the same search in
@@ -349,7 +355,7 @@ class _Problem:
     tau: np.ndarray  # touching tolerance
     err_gap: np.ndarray  # rounding bound of a SAT value or interval bound
     err_overlap: np.ndarray  # rounding bound of a witness depth
-    ghost_open: np.ndarray  # answers not yet shown to touch within tau (a SAT gap <= tau somewhere up to ts)
+    ghost_open: np.ndarray  # answers not yet shown to touch within tau (a SAT gap <= tau somewhere)
 
     def __post_init__(self):
         n = len(self.ts)
@@ -373,8 +379,7 @@ class _Problem:
             self.verdict[qq[miss]] = MISS
             self.verdict[qq[late]] = LATE
             self.evidence[qq[miss | late]] = self.num.tofloat(tt[miss | late]).astype(float)
-        upto = np.where(self.hit, self.ts, -np.inf)[q]  # no NaN in comparisons with mpf objects
-        touch = self.hit[q] & (t <= upto) & (g <= self.tau[q] - self.err_gap[q])
+        touch = self.hit[q] & (g <= self.tau[q] - self.err_gap[q])
         self.ghost_open[q[touch]] = False
         return g, u, side
 
@@ -460,12 +465,14 @@ class Checked:
     """Verdicts of one batch: ``verdict`` (n,) codes (``VERDICTS[code]`` names them);
     ``evidence`` (n,) the time of the certified overlap (MISS, LATE), else NaN; ``early_gap``
     (n,) the SAT gap at the answer in units of the smaller box's size, clipped at 0 (how far
-    apart the boxes still were when reported touching; NaN without an answer); ``mp`` (n,)
+    apart the boxes still were when reported touching; NaN without an answer); ``early``
+    (n,) answers certified more than the touching tolerance apart at t_s; ``mp`` (n,)
     whether the query needed the mpmath tier."""
 
     verdict: np.ndarray
     evidence: np.ndarray
     early_gap: np.ndarray
+    early: np.ndarray
     mp: np.ndarray
 
 
@@ -476,16 +483,20 @@ def _sizes(X, s):
     return 0.5 * lengths.sum(-1), lengths.max(-1)
 
 
-def _initial_samples(t0, t_end, cut, hit, late, grid, ratio):
-    """(q, t) sorted: a uniform grid on [t0, t_end] and, for answers, the ladder cut - late (ratio^k - 1)."""
+def _initial_samples(t0, t_end, cut, ladder_on, late, grid, ratio):
+    """(q, t) sorted: a uniform grid on each [t0, t_end] and, where ``ladder_on``, the
+    ladder cut - late (ratio^k - 1) inside it (towards cut from below; with a negative
+    ``late``, away from it upwards). ``t0`` is a float or one per query."""
     n = len(t_end)
+    t0 = np.broadcast_to(np.asarray(t0, float), (n,))
     k = np.arange(grid + 1) / grid
     q = [np.repeat(np.arange(n), grid + 1)]
-    t = [(t0 + (t_end - t0)[:, None] * k).ravel()]
+    t = [(t0[:, None] + (t_end - t0)[:, None] * k).ravel()]
     t[0][grid::grid + 1] = t_end  # the grid ends exactly at t_end
-    rungs = ratio ** np.arange(int(np.ceil(np.log(max(t_end.max() - t0, late) / late) / np.log(ratio))) + 1) - 1
+    span = max(float((t_end - t0).max()), abs(late))
+    rungs = ratio ** np.arange(int(np.ceil(np.log(span / abs(late)) / np.log(ratio))) + 1) - 1
     lad = cut[:, None] - late * rungs
-    ok = hit[:, None] & (lad > t0)
+    ok = ladder_on[:, None] & (lad > t0[:, None]) & (lad < t_end[:, None])
     q.append(np.broadcast_to(np.arange(n)[:, None], lad.shape)[ok])
     t.append(lad[ok])
     q, t = np.concatenate(q), np.concatenate(t)
@@ -519,13 +530,27 @@ def check(batch: QueryBatch, t_solver, tol: CheckTolerances = DEFAULT) -> Checke
                  tol.overlap_round * eps * r + 4 * err_prep, hit.copy())
     q, t = _initial_samples(t0, t_end, cut, hit, late, tol.grid, tol.ladder)
     g, u, side = P.sample(q, t)
+    at_ts = hit[q] & (t == ts[q])
+    early = np.full(n, np.nan)
+    early[q[at_ts]] = np.maximum(g[at_ts], 0.0) / np.minimum(long_a, long_b)[q[at_ts]]
+    beyond = np.zeros(n, bool)
+    beyond[q[at_ts]] = g[at_ts] - P.err_gap[q[at_ts]] > tau[q[at_ts]]
+    far = np.nonzero(P.ghost_open & (ts < t1))[0]  # no touch up to t_s: is one coming, or none at all?
+    if len(far):
+        qf, tf = _initial_samples(ts[far], np.full(len(far), t1), ts[far], np.ones(len(far), bool), -late, tol.grid,
+                                  tol.ladder)
+        gf, uf, sf = P.sample(far[qf], tf)
+        q, t = np.concatenate([q, far[qf]]), np.concatenate([t, tf])
+        g, u, side = np.concatenate([g, gf]), np.concatenate([u, uf]), np.concatenate([side, sf])
+        order = np.lexsort((t, q))
+        keep = np.ones(len(q), bool)
+        keep[1:] = (q[order][1:] != q[order][:-1]) | (t[order][1:] != t[order][:-1])
+        order = order[keep]
+        q, t, g, u, side = q[order], t[order], g[order], u[order], side[order]
     pair = q[1:] == q[:-1]
     i, j = np.nonzero(pair)[0], np.nonzero(pair)[0] + 1
     lone = np.nonzero(np.bincount(q, minlength=n)[q] == 1)[0]  # an answer at t0: the interval [t0, t0]
     i, j = np.concatenate([i, lone]), np.concatenate([j, lone])
-    at_ts = hit[q] & (t == ts[q])
-    early = np.full(n, np.nan)
-    early[q[at_ts]] = np.maximum(g[at_ts], 0.0) / np.minimum(long_a, long_b)[q[at_ts]]
     left = _search(P, q[i], t[i], t[j], ((g[i], u[i], side[i]), (g[j], u[j], side[j])), tol.max_rounds,
                    tol.max_intervals)
     _finish(P)
@@ -533,7 +558,7 @@ def check(batch: QueryBatch, t_solver, tol: CheckTolerances = DEFAULT) -> Checke
     if used_mp.any():
         _mp_tier(batch, P, left, tol)
     P.verdict[P.verdict < 0] = UNRESOLVED
-    return Checked(P.verdict, P.evidence, early, used_mp)
+    return Checked(P.verdict, P.evidence, early, beyond, used_mp)
 
 
 def _mp_tier(batch, P: _Problem, left, tol):

@@ -11,9 +11,11 @@ family) and judged by ``checker.check``.
 
 Tallies per family: queries; hits (answers that report a contact); misses, late, false
 hits (certified failures: see ``checker``); unresolved (no verdict even in mpmath);
-mpmath (queries the float64 tier handed on); worst early (the largest SAT gap at a
-reported contact, in units of the smaller box's size: how far apart the boxes still
-were when reported touching).
+mpmath (queries the float64 tier handed on); early (answers given while the boxes were
+certified more than the touching tolerance apart: a contact does come, later; not a
+failure, since the solver promises never late, but counted); worst early (the largest
+SAT gap at a reported contact, in units of the smaller box's size: how far apart the
+boxes still were when reported touching).
 """
 
 from __future__ import annotations
@@ -35,9 +37,9 @@ from .tables import markdown
 __all__ = ["FAMILY_ID", "COUNTS", "Summary", "run_shard", "validate", "summary_table", "last_line"]
 
 FAMILY_ID = {name: i for i, name in enumerate(FAMILIES)}  # fixed: a family's stream ignores the others
-COUNTS = ("queries", "hits", "misses", "late", "false_hits", "unresolved", "mp")
+COUNTS = ("queries", "hits", "misses", "late", "false_hits", "unresolved", "mp", "early")
 FAILURES = {C.MISS: "miss", C.LATE: "late", C.FALSE_HIT: "false_hit"}
-SAVED_UNRESOLVED = 20  # per shard and family: enough to study, not a flood
+SAVED = 20  # unresolved and early cases kept per shard and family: enough to study, not a flood
 
 
 def plan(queries: int, shard_size: int) -> list[tuple[int, int]]:
@@ -66,11 +68,13 @@ def run_shard(seed: int, shard: int, n: int, families, tolerances: dict) -> dict
         early = c.early_gap[np.isfinite(c.early_gap)]
         tallies[name] = dict(queries=nf, hits=int(np.isfinite(ts).sum()), misses=int(v[C.MISS]), late=int(v[C.LATE]),
                              false_hits=int(v[C.FALSE_HIT]), unresolved=int(v[C.UNRESOLVED]), mp=int(c.mp.sum()),
-                             worst_early=float(early.max()) if len(early) else 0.0)
-        save = [i for i in range(nf) if c.verdict[i] in FAILURES]
-        save += [i for i in np.nonzero(c.verdict == C.UNRESOLVED)[0][:SAVED_UNRESOLVED]]
-        for i in save:
-            verdict = C.VERDICTS[c.verdict[i]]
+                             early=int(c.early.sum()), worst_early=float(early.max()) if len(early) else 0.0)
+        save = {int(i): C.VERDICTS[c.verdict[i]] for i in np.nonzero(np.isin(c.verdict, list(FAILURES)))[0]}
+        for i in np.nonzero(c.verdict == C.UNRESOLVED)[0][:SAVED]:
+            save[int(i)] = "unresolved"
+        for i in np.nonzero(c.early & (c.verdict == C.HIT))[0][:SAVED]:
+            save[int(i)] = "early"
+        for i, verdict in sorted(save.items()):
             origin = dict(family=name, seed=seed, shard=shard, index=int(i))
             cases[case_name(name, seed, shard, int(i), verdict)] = case_text(batch, i, ts[i], verdict, c.evidence[i],
                                                                                origin)
@@ -104,7 +108,7 @@ class Summary(dict):
 
 
 def summary_table(s: Summary) -> str:
-    head = ("family", "queries", "hits", "misses", "late", "false hits", "unresolved", "mpmath",
+    head = ("family", "queries", "hits", "misses", "late", "false hits", "unresolved", "mpmath", "early",
             "worst early (box sizes)")
     return markdown(head, [(name, *(f"{t[k]:,}" for k in COUNTS), f"{t['worst_early']:.1e}") for name, t in s.items()])
 
