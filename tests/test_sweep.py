@@ -64,6 +64,7 @@ def test_resume_runs_only_missing_trials(tmp_path, monkeypatch):
 
 
 def test_several_scenes_write_one_plot_each(tmp_path):
+    pytest.importorskip("matplotlib")  # the scale extra's; the plain test extra runs the rest
     rows, tunnels, meta = SW.sweep(boxes=[8, 10], trials=1, window=6, quick=True, workers=0, show_progress=False)
     written = SW.write_outputs(rows, str(tmp_path / "t.csv"), str(tmp_path / "t.png"), [8, 10])
     assert [Path(w).name for w in written] == ["t.csv", "t_8.png", "t_10.png"]

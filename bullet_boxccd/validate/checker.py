@@ -124,11 +124,6 @@ class _Float:
 
     eps = float(np.finfo(float).eps)
     ninf = -np.inf
-
-    @staticmethod
-    def arr(x):
-        return np.asarray(x, dtype=float)
-
     sqrt = staticmethod(np.sqrt)
 
     @staticmethod
