@@ -6,7 +6,8 @@ The same run (``--queries`` queries of every family, seed ``--seed``, shards of
 ``--shard-size``) with ``--workers 0`` (in this process, no Ray: the baseline, measured
 in the same run), then on a local Ray started with as many CPUs as workers (1, 2 by
 default). Per run: wall seconds from the call to the summary (Ray's start-up and
-shut-down included), queries per second, and the ratio to the in-process rate. Ray's
+shut-down included), queries per second, and the ratio to the in-process rate; and the
+in-process run's CPU seconds (queries per CPU second: what an idle core would do). Ray's
 start-up alone is measured as a 1-query run. Every run's summary must equal the
 baseline's (the totals do not depend on the worker count); the program stops if not.
 
@@ -35,11 +36,12 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 
 
 def run(queries, seed, shard_size, workers):
+    """(summary, wall seconds, this process's CPU seconds)."""
     with tempfile.TemporaryDirectory() as tmp:
-        t = time.perf_counter()
+        t, cpu = time.perf_counter(), time.process_time()
         summary, _ = validate(queries, seed=seed, workers=workers, report=os.path.join(tmp, "r.jsonl"),
                               shard_size=shard_size, show_progress=False)
-        return summary, time.perf_counter() - t
+        return summary, time.perf_counter() - t, time.process_time() - cpu
 
 
 def main(argv=None):
@@ -52,13 +54,15 @@ def main(argv=None):
     args = ap.parse_args(argv)
     print(f"machine: {platform.platform()}, {os.cpu_count()} CPUs, python {platform.python_version()}; "
           f"load average before: {os.getloadavg()[0]:.2f}")
-    base, base_s = run(args.queries, args.seed, args.shard_size, 0)
+    base, base_s, base_cpu = run(args.queries, args.seed, args.shard_size, 0)
     print(last_line(base))
+    print(f"in this process: {base_cpu:.1f} CPU s, {args.queries / base_cpu:,.0f} queries per CPU second "
+          "(what one idle core would do)")
     rows = [dict(workers=0, where="in this process", queries=args.queries, seconds=round(base_s, 2),
                  queries_per_s=round(args.queries / base_s), ratio=1.0, startup_s="")]
     for w in args.workers:
-        _, startup = run(1, args.seed, args.shard_size, w)
-        summary, s = run(args.queries, args.seed, args.shard_size, w)
+        _, startup, _ = run(1, args.seed, args.shard_size, w)
+        summary, s, _ = run(args.queries, args.seed, args.shard_size, w)
         if summary != base:
             raise SystemExit(f"{w} workers gave other totals than in-process:\n{last_line(summary)}")
         rows.append(dict(workers=w, where=f"local Ray, {w} CPU{'s' if w > 1 else ''}", queries=args.queries,

@@ -10,7 +10,9 @@ CPUs for this module and shut it down at the end (no process left behind).
 from __future__ import annotations
 
 import json
+import os
 import re
+import subprocess
 import sys
 
 import numpy as np
@@ -276,3 +278,39 @@ def test_an_early_answer_is_counted_early_not_false():
     assert C.VERDICTS[c.verdict[0]] == "hit" and c.early[0] and 5e-9 < c.early_gap[0] < 1e-8
     ref = reference(as_case(b, 0))
     assert ref.outcome == "hit" and case["solver_t"] < ref.t_hit < case["solver_t"] + 1e-8
+
+
+KEEPER = """
+import sys, ray
+ctx = ray.init(num_cpus=2, include_dashboard=False, logging_level="ERROR")
+print(ctx.address_info["gcs_address"], flush=True)
+sys.stdin.read()  # until the test closes our stdin
+ray.shutdown()
+"""
+
+
+def test_joins_a_running_cluster_by_address(tmp_path):
+    """`--address` joins a Ray cluster that another process started (and leaves it up); the
+    totals equal the in-process run's. Both sides use Ray's token authentication (the
+    cluster's token is in ~/.ray/auth_token, which ray.init writes)."""
+    pytest.importorskip("ray")
+    import psutil
+
+    env = dict(os.environ, RAY_AUTH_MODE="token")
+    keeper = subprocess.Popen([sys.executable, "-c", KEEPER], stdin=subprocess.PIPE, stdout=subprocess.PIPE,
+                              text=True, env=env)
+    try:
+        address = keeper.stdout.readline().strip()
+        assert re.fullmatch(r"[\d.]+:\d+", address), address
+        out = subprocess.run([sys.executable, "-m", "bullet_boxccd", "validate", "--queries", "600", "--families",
+                              "rotation,one_static,grazing", "--seed", "5", "--shard-size", "200", "--address", address,
+                              "--no-progress"], capture_output=True, text=True, check=True, env=env).stdout
+        assert psutil.Process(keeper.pid).is_running()  # the cluster outlives the command
+        cluster = psutil.Process(keeper.pid).children(recursive=True)
+    finally:
+        keeper.stdin.close()
+        keeper.wait(timeout=60)
+    want, _ = run(tmp_path)
+    assert out.strip().splitlines()[-1] == shards.last_line(want)
+    _, alive = psutil.wait_procs(cluster, timeout=20)
+    assert not alive, f"the cluster left processes behind: {alive}"
