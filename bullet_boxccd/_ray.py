@@ -22,8 +22,9 @@ that starts that job renames the file (so the retry proceeds) and exits at once 
 from __future__ import annotations
 
 import os
+from pathlib import Path
 
-__all__ = ["RayMissingError", "map_unordered"]
+__all__ = ["RayMissingError", "init", "map_unordered"]
 
 FAULT_ENV = "BOXCCD_FAULT_FILE"
 
@@ -40,6 +41,22 @@ def _ray():
             'this needs Ray: pip install "bullet_boxccd[scale]" (in a checkout: pip install ".[scale]"), '
             "or run in this process with --workers 0") from None
     return ray
+
+
+def init(**kwargs):
+    """``ray.init(**kwargs)``, started from the directory this package was imported from.
+
+    Ray puts the driver's working directory on every worker's ``sys.path``, ahead of
+    site-packages; run from a source checkout, that is the uninstalled ``bullet_boxccd/``
+    (without its compiled core), which workers would import instead of the installed
+    package. From the package's own parent directory, workers import what the driver did."""
+    ray = _ray()
+    here = os.getcwd()
+    os.chdir(Path(__file__).resolve().parent.parent)
+    try:
+        return ray.init(**kwargs)
+    finally:
+        os.chdir(here)
 
 
 def _maybe_die(key: str) -> None:
@@ -70,9 +87,9 @@ def map_unordered(fn, jobs, workers=None, address=None, max_retries=3):
         # Workers' own output (pybullet's banner, per task) stays in Ray's logs; results and errors come back.
         common = dict(logging_level="ERROR", log_to_driver=False, runtime_env={"env_vars": env} if env else None)
         if address:  # an existing cluster brings its own resources
-            ray.init(address=address, **common)
+            init(address=address, **common)
         else:
-            ray.init(num_cpus=workers or os.cpu_count(), include_dashboard=False, **common)
+            init(num_cpus=workers or os.cpu_count(), include_dashboard=False, **common)
     try:
         slots = workers or max(1, int(ray.cluster_resources().get("CPU", 1)))
         task = ray.remote(num_cpus=1, max_retries=max_retries)(_run)

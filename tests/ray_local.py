@@ -15,12 +15,12 @@ def local_ray(tmp_path_factory):
     ray = pytest.importorskip("ray")
     import psutil
 
-    from bullet_boxccd._ray import FAULT_ENV
+    from bullet_boxccd._ray import FAULT_ENV, init
 
     fault = tmp_path_factory.mktemp("fault") / "kill"
     os.environ[FAULT_ENV] = str(fault)
-    ray.init(num_cpus=2, include_dashboard=False, logging_level="ERROR", log_to_driver=False,
-             runtime_env={"env_vars": {FAULT_ENV: str(fault)}})
+    init(num_cpus=2, include_dashboard=False, logging_level="ERROR", log_to_driver=False,
+         runtime_env={"env_vars": {FAULT_ENV: str(fault)}})
     yield fault
     ray.shutdown()
     del os.environ[FAULT_ENV]

@@ -297,14 +297,16 @@ def test_joins_a_running_cluster_by_address(tmp_path):
     import psutil
 
     env = dict(os.environ, RAY_AUTH_MODE="token")
+    # Both run outside the checkout, so that they import the installed package.
     keeper = subprocess.Popen([sys.executable, "-c", KEEPER], stdin=subprocess.PIPE, stdout=subprocess.PIPE,
-                              text=True, env=env)
+                              text=True, env=env, cwd=tmp_path)
     try:
         address = keeper.stdout.readline().strip()
         assert re.fullmatch(r"[\d.]+:\d+", address), address
         out = subprocess.run([sys.executable, "-m", "bullet_boxccd", "validate", "--queries", "600", "--families",
                               "rotation,one_static,grazing", "--seed", "5", "--shard-size", "200", "--address", address,
-                              "--no-progress"], capture_output=True, text=True, check=True, env=env).stdout
+                              "--no-progress"], capture_output=True, text=True, check=True, env=env,
+                             cwd=tmp_path).stdout
         assert psutil.Process(keeper.pid).is_running()  # the cluster outlives the command
         cluster = psutil.Process(keeper.pid).children(recursive=True)
     finally:
