@@ -116,7 +116,7 @@ def run_validate(args) -> int:
               f"({run['queries_run'] / run['seconds']:,.0f} queries/s, {where})")
     if t["queries"] > run["queries_run"]:
         print(f"{t['queries'] - run['queries_run']:,} queries taken from {args.report}")
-    if summary.failures or t["unresolved"] or t["early"]:
+    if (summary.failures or t["unresolved"] or t["early"]) and Path(run["cases_dir"]).is_dir():
         print(f"case files of the failures (and of up to 20 unresolved and 20 early answers per shard and family): "
               f"{run['cases_dir']}/ (boxccd toi FILE)")
     print(last_line(summary))
@@ -149,8 +149,9 @@ def main(argv=None) -> int:
     v = sub.add_parser("validate", help="seeded randomized queries, solved and checked by an independent checker; "
                                         "exit status 1 if any fails")
     v.add_argument("--queries", type=_at_least(1), default=100_000, help="how many (default 1e5)")
-    v.add_argument("--families", nargs="+", default=None, help="query families (default: all; space or comma "
-                                                                "separated)")
+    v.add_argument("--families", nargs="+", default=None,
+                   help="query families, space or comma separated (default: all): scale, aspect, speed, rotation, "
+                        "far, grazing, near_parallel, range_ends, both_moving, one_static")
     v.add_argument("--seed", type=int, default=0)
     v.add_argument("--shard-size", type=_at_least(1), default=10_000, help="queries per task (default 1e4)")
     v.add_argument("--cases", default=None, help="directory for failing cases (default: next to the report, "
