@@ -149,9 +149,10 @@ def main(argv=None) -> int:
     v = sub.add_parser("validate", help="seeded randomized queries, solved and checked by an independent checker; "
                                         "exit status 1 if any fails")
     v.add_argument("--queries", type=_at_least(1), default=100_000, help="how many (default 1e5)")
+    from .validate.families import FAMILIES
+
     v.add_argument("--families", nargs="+", default=None,
-                   help="query families, space or comma separated (default: all): scale, aspect, speed, rotation, "
-                        "far, grazing, near_parallel, range_ends, both_moving, one_static")
+                   help=f"query families, space or comma separated (default: all): {', '.join(FAMILIES)}")
     v.add_argument("--seed", type=int, default=0)
     v.add_argument("--shard-size", type=_at_least(1), default=10_000, help="queries per task (default 1e4)")
     v.add_argument("--cases", default=None, help="directory for failing cases (default: next to the report, "
