@@ -93,7 +93,6 @@ from __future__ import annotations
 import argparse
 import csv
 import inspect
-import math
 import os
 import platform
 import statistics
@@ -106,99 +105,24 @@ import pybullet as p
 from tqdm import tqdm
 
 from bullet_boxccd import BoxCCD
+from bullet_boxccd.pybullet_ccd.scenes import (  # the scene, shared with tradeoff.py and `boxccd sweep`
+    DT,
+    HALF,
+    N_PROJ,
+    NATIVE_RADIUS,
+    G,
+    build,
+    shots,
+)
+from bullet_boxccd.pybullet_ccd.scenes import below_ground as _below_ground
+from bullet_boxccd.pybullet_ccd.scenes import centre as _centre
+from bullet_boxccd.pybullet_ccd.scenes import crosses_wall as _crosses_wall
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "demos"))
 from _common import print_table  # noqa: E402  (the demos' markdown table)
 
-DT = 1.0 / 240.0
-HALF = 0.05  # half extent of every dynamic cube
-G = 9.81
-N_PROJ = 4
-WALL_HALF = (0.005, 1.0, 0.75)  # 1 cm thick, wall plane x = 0
-GROUND_HALF = (60.0, 60.0, 0.01)  # 2 cm thick, top at z = 0
 SUBSTEPS = (2, 4, 8, 16)
-NATIVE_RADIUS = 0.5 * HALF
 PHASES = ("step", "state", "broad_phase", "solve", "rewind")
-
-
-# ------------------------------------------------------------------ scene
-def _box(cid, half, pos, mass, maximal):
-    col = p.createCollisionShape(p.GEOM_BOX, halfExtents=half, physicsClientId=cid)
-    b = p.createMultiBody(mass, col, -1, basePosition=pos, useMaximalCoordinates=maximal, physicsClientId=cid)
-    if mass > 0:
-        p.changeDynamics(b, -1, linearDamping=0.0, angularDamping=0.0, maxJointVelocity=10000.0,
-                         physicsClientId=cid)
-    return b
-
-
-def build(n_boxes, maximal, settle_steps=200):
-    """A settled scene; returns (cid, state id, projectile ids, pile ids)."""
-    cid = p.connect(p.DIRECT)
-    p.setGravity(0, 0, -G, physicsClientId=cid)
-    p.setPhysicsEngineParameter(fixedTimeStep=DT, numSubSteps=0, physicsClientId=cid)
-    _box(cid, GROUND_HALF, (0, 0, -GROUND_HALF[2]), 0.0, maximal)
-    _box(cid, WALL_HALF, (0, 0, WALL_HALF[2]), 0.0, maximal)
-    n_pile = n_boxes - N_PROJ
-    layers = min(5, n_pile)
-    per_layer = math.ceil(n_pile / layers)
-    side = math.ceil(math.sqrt(per_layer))
-    pitch = 2 * HALF + 0.002
-    pile = []
-    for i in range(n_pile):
-        layer, r = divmod(i, per_layer)
-        ix, iy = divmod(r, side)
-        pile.append(_box(cid, [HALF] * 3, (-2.0 - ix * pitch, 2.0 + iy * pitch, HALF + layer * (2 * HALF + 1e-4)),
-                         1.0, maximal))
-    for _ in range(settle_steps):
-        p.stepSimulation(physicsClientId=cid)
-    # Projectiles parked high above the far corner (repositioned at every trial).
-    proj = [_box(cid, [HALF] * 3, (40.0 + 2 * k, 40.0, 30.0), 1.0, maximal) for k in range(N_PROJ)]
-    return cid, p.saveState(physicsClientId=cid), proj, pile
-
-
-def shots(seed):
-    """Seeded start poses and velocities of the projectiles: list of (pos, quat, v, w, kind)."""
-    rng = np.random.default_rng(seed)
-    out = []
-    for k in range(N_PROJ):
-        speed = rng.uniform(50.0, 150.0)
-        t_hit = rng.integers(8, 61) * DT + rng.uniform(0, DT)
-        if k < 2:  # at the wall, from the -x side
-            aim = np.array([-WALL_HALF[0] - HALF, rng.uniform(-0.7, 0.7), rng.uniform(0.3, 1.2)])
-            theta, phi = np.radians(rng.uniform(0, 20)), rng.uniform(0, 2 * np.pi)
-            d = np.array([np.cos(theta), np.sin(theta) * np.cos(phi), np.sin(theta) * np.sin(phi)])
-            kind = "wall"
-            if aim[2] - speed * d[2] * t_hit + 0.5 * G * t_hit**2 < 0.3:
-                d[2] = -d[2]  # it would start under the ground: come down onto the wall instead
-        else:  # down at the empty ground
-            aim = np.array([rng.uniform(-4.0, -1.0), rng.uniform(-3.0, -1.0), HALF])
-            theta, phi = np.radians(rng.uniform(0, 30)), rng.uniform(0, 2 * np.pi)
-            d = np.array([np.sin(theta) * np.cos(phi), np.sin(theta) * np.sin(phi), -np.cos(theta)])
-            kind = "ground"
-        v = speed * d
-        pos = aim - v * t_hit + np.array([0, 0, 0.5 * G * t_hit**2])
-        q = rng.normal(size=4)
-        q /= np.linalg.norm(q)
-        w = rng.uniform(-20.0, 20.0, 3)
-        out.append((pos, q, v, w, kind))
-    return out
-
-
-def _centre(cid, b):
-    return np.array(p.getBasePositionAndOrientation(b, physicsClientId=cid)[0])
-
-
-def _crosses_wall(c0, c1):
-    """The centre went from x < 0 to x >= 0 in a step through the wall's face (not over or round it)."""
-    if not (c0[0] < 0.0 <= c1[0]):
-        return False
-    s = -c0[0] / (c1[0] - c0[0])
-    y, z = c0[1:] + s * (c1[1:] - c0[1:])
-    return abs(y) <= WALL_HALF[1] and 0.0 <= z <= 2 * WALL_HALF[2]
-
-
-def _below_ground(c):
-    return c[2] < 0.0 and abs(c[0]) < GROUND_HALF[0] and abs(c[1]) < GROUND_HALF[1]
 
 
 # ------------------------------------------------------------------ runs
@@ -263,8 +187,12 @@ def _small_world(n, slide):
     cid = p.connect(p.DIRECT)
     p.setGravity(0, 0, -G, physicsClientId=cid)
     p.setTimeStep(DT, physicsClientId=cid)
-    _box(cid, (50.0, 50.0, 0.05), (0.0, 0.0, -0.05), 0.0, False)
-    cubes = [_box(cid, (HALF,) * 3, (0.3 * (k % 10), 0.3 * (k // 10), HALF), 1.0, False) for k in range(n)]
+    def box(half, pos, mass):
+        col = p.createCollisionShape(p.GEOM_BOX, halfExtents=half, physicsClientId=cid)
+        return p.createMultiBody(mass, col, basePosition=pos, physicsClientId=cid)
+
+    box((50.0, 50.0, 0.05), (0.0, 0.0, -0.05), 0.0)
+    cubes = [box((HALF,) * 3, (0.3 * (k % 10), 0.3 * (k // 10), HALF), 1.0) for k in range(n)]
     for _ in range(200):
         p.stepSimulation(physicsClientId=cid)
     if slide:
