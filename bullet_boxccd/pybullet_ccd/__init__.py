@@ -161,18 +161,18 @@ class BoxCCD:
         if self._quiet and last_serial() == self._epoch and raw.getNumBodies(physicsClientId=cid) == self.world.count:
             # Nothing changed in the world since the last step: step, read the velocities
             # (the one read per body pybullet's API forces), and stop there if nothing is fast.
-            t0 = time.perf_counter()
             raw.stepSimulation(physicsClientId=cid)
-            t1 = time.perf_counter()
-            self.stats.seconds["step"] += t1 - t0
             st = self._state
             fast = self._sweeper.fast(st.rows, self._dt, st.moving, st.twists())
-            events = [] if fast is None else self._quiet_sweep(fast, t1)
+            self.stats.steps += 1
+            if fast is None:
+                return []
+            events = self._quiet_sweep(fast, time.perf_counter())
         else:
             events = self._full_step()
+            self.stats.steps += 1
         self._quiet = self._substeps == 1 and not self._state.with_velocity and not self.impacts.watch
         self._epoch = last_serial()
-        self.stats.steps += 1
         return events
 
     def _quiet_sweep(self, fast, t0):

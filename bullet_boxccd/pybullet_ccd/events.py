@@ -58,5 +58,8 @@ class CCDStats:
     held: int = 0  # contacts pybullet's solve left pressing in, resolved as collisions by the plugin
     bounded: int = 0  # partings of handled impacts slowed to what restitution allows
     rediscoveries: int = 0  # world changes read
+    # Wall time by phase: pybullet's stepSimulation, reading state, broad phase, solving,
+    # rewinding. A step in a world where nothing changed since the last is not timed
+    # until something in it is fast (its stepSimulation then counts for nothing here).
     seconds: dict = field(default_factory=lambda: dict.fromkeys(
         ("step", "state", "broad_phase", "solve", "rewind"), 0.0))

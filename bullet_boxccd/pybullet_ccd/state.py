@@ -14,6 +14,8 @@ any other.
 
 from __future__ import annotations
 
+from functools import partial
+
 import numpy as np
 
 from .. import _core
@@ -21,27 +23,21 @@ from ._hooks import raw
 from .layout import POSE, STATE_SIZE
 from .world import STATIC
 
-__all__ = ["FrameState", "read_twists", "read_poses"]
+__all__ = ["FrameState"]
 
 # Relative size below which a kinematic frame's jump is rounding of the path's
 # reconstruction, not a move.
 _JUMP = 1e-12
 
 
-def read_twists(cid, keys, frames) -> list:
-    """pybullet's velocity reads of the given frames as they come, ((vx, vy, vz), (wx,
-    wy, wz)) each (world, centre of mass)."""
-    get_v, get_link = raw.getBaseVelocity, raw.getLinkState
-    return [get_v(keys[f][0], physicsClientId=cid) if keys[f][1] == -1 else
-            get_link(keys[f][0], keys[f][1], computeLinkVelocity=1, physicsClientId=cid)[6:8] for f in frames]
-
-
-def read_poses(cid, keys, frames) -> list:
-    """pybullet's reads of the given frames' centre-of-mass poses as they come, ((x, y,
-    z), (qx, qy, qz, qw)) each."""
-    get_pose, get_link = raw.getBasePositionAndOrientation, raw.getLinkState
-    return [get_pose(keys[f][0], physicsClientId=cid) if keys[f][1] == -1 else
-            get_link(keys[f][0], keys[f][1], physicsClientId=cid)[:2] for f in frames]
+def _readers(cid, body, link):
+    """pybullet's (pose, velocity) reads of a frame's centre of mass as they come: ((x,
+    y, z), (qx, qy, qz, qw)) and ((vx, vy, vz), (wx, wy, wz)) (world)."""
+    if link == -1:
+        return (partial(raw.getBasePositionAndOrientation, body, physicsClientId=cid),
+                partial(raw.getBaseVelocity, body, physicsClientId=cid))
+    return (lambda: raw.getLinkState(body, link, physicsClientId=cid)[:2],
+            lambda: raw.getLinkState(body, link, computeLinkVelocity=1, physicsClientId=cid)[6:8])
 
 
 class FrameState:
@@ -51,26 +47,29 @@ class FrameState:
         self.cid, self.tables = cid, tables
         self.rows = np.zeros((len(tables.keys), STATE_SIZE))
         self.rows[:, 6] = 1.0
+        self._pose, self._twist = zip(*(_readers(cid, b, link) for b, link in tables.keys)) if tables.keys else ((), ())
         static = np.flatnonzero(tables.kind == STATIC).tolist()
-        _core.put_poses(self.rows, static, read_poses(cid, tables.keys, static))
         self._static = set(static)
+        self.fresh = set()  # moving or kinematic frames whose poses in ``rows`` are this step's (read or set)
+        self.read_poses(static)
         self.moving = list(tables.moving)  # frames whose velocity is read at every step
+        self._moving_twists = [self._twist[f] for f in self.moving]
         self.with_velocity = set()  # static frames the user gave a velocity (Bullet moves them)
         self.kinematic = []  # static frames the user moved before the current step, or that have a velocity
         self.pose0 = {}  # kinematic frame -> its pose before the current step (E0)
         self.jumps = {}  # kinematic frame -> (E0, P1): it jumped before the step
-        self.fresh = set()  # moving or kinematic frames whose poses in ``rows`` are this step's (read or set)
 
     def twists(self) -> list:
-        """pybullet's velocity reads of the moving frames (see read_twists)."""
-        return read_twists(self.cid, self.tables.keys, self.moving)
+        """pybullet's velocity reads of the moving frames, as they come."""
+        return [read() for read in self._moving_twists]
 
     def read_velocities(self):
         _core.put_twists(self.rows, self.moving, self.twists())
 
     def read_poses(self, frames):
         if frames:
-            _core.put_poses(self.rows, frames, read_poses(self.cid, self.tables.keys, frames))
+            pose = self._pose
+            _core.put_poses(self.rows, frames, [pose[f]() for f in frames])
             self.fresh.update(frames)
 
     def stale(self, frames):
@@ -98,7 +97,7 @@ class FrameState:
         if not frames:
             return
         self.read_poses(frames)
-        _core.put_twists(self.rows, frames, read_twists(self.cid, self.tables.keys, frames))
+        _core.put_twists(self.rows, frames, [self._twist[f]() for f in frames])
         starts = _core.frame_poses(self.rows, dt, np.array(frames, dtype=np.int64), np.zeros(len(frames)))
         for f, p1 in zip(frames, starts):
             e0 = self.pose0[f]
