@@ -188,13 +188,14 @@ def test_fast_boxes_and_slack():
     states[2, 7] = np.nan
     boxes = [(f, np.eye(4), np.full(3, 0.1)) for f in range(3)]
     sweeper = sweeper_of(boxes, np.full(3, 0.2), [15 * DT, 15 * DT, 0.0], 3)
-    fast, slack, frames = sweeper.fast(states, DT)
-    assert fast.tolist() == [1] and frames == [1] and slack == pytest.approx(10 * DT)
+    sweeper.state[:] = states
+    fast, slack, frames = sweeper.fast(DT)
+    assert fast == [1] and frames == [1] and slack == pytest.approx(10 * DT)
     # pybullet's velocity reads written first: frame 1 stops, frame 0 speeds up to 20 m/s.
-    fast, _, frames = sweeper.fast(states, DT, [0, 1], [((20.0, 0.0, 0.0), (0.0, 0.0, 0.0)), ((0.0,) * 3, (0.0,) * 3)])
-    assert fast.tolist() == [0] and frames == [0] and states[0, 7] == 20.0 and states[1, 12] == 0.0
-    states[0, 7] = 0.0
-    assert sweeper.fast(states, DT) is None
+    fast, _, frames = sweeper.fast(DT, [0, 1], [((20.0, 0.0, 0.0), (0.0, 0.0, 0.0)), ((0.0,) * 3, (0.0,) * 3)])
+    assert fast == [0] and frames == [0] and sweeper.state[0, 7] == 20.0 and sweeper.state[1, 12] == 0.0
+    sweeper.state[0, 7] = 0.0
+    assert sweeper.fast(DT) is None
 
 
 @pytest.mark.parametrize("all_others", [False, True])
@@ -219,7 +220,8 @@ def test_sweeper_touches_is_its_parts(all_others):
         order = rng.permutation(9).astype(np.int64)
         n_fast = int(rng.integers(1, 5))
         given = order[:n_fast] if all_others else order[:n_fast + int(rng.integers(0, 9 - n_fast))]
-        n_pairs, solves, found = sw.touches(states, DT, given, n_fast, all_others, FIT_TOLERANCE, tol, 0.0, 0.02)
+        sw.state[:] = states
+        n_pairs, solves, found = sw.touches(DT, given.tolist(), n_fast, all_others, FIT_TOLERANCE, tol, 0.0, 0.02)
         want_boxes = np.concatenate([given, np.setdiff1d(np.arange(9), given)]) if all_others else given
         rows = rows_of(states, boxes)[want_boxes]
         frame = np.array([f for f, _, _ in boxes], dtype=np.int64)[want_boxes]
@@ -289,16 +291,24 @@ def test_first_depth_skips_only_samples_that_cannot_reach_the_target():
 
 
 def test_reads_go_into_the_frame_state_rows():
-    """pybullet's read tuples go into the named columns; bad reads raise."""
-    rows = np.zeros((3, 13))
-    _core.put_poses(rows, [2, 0], [((1.0, 2.0, 3.0), (0.0, 0.0, 0.0, 1.0)), ((4.0, 5.0, 6.0), (1.0, 0.0, 0.0, 0.0))])
+    """pybullet's read tuples go into the named columns of the sweeper's rows (a view
+    that stays valid); bad reads raise."""
+    sweeper = sweeper_of([(f, np.eye(4), np.full(3, 0.1)) for f in range(3)], np.ones(3), np.ones(3), 3)
+    rows = sweeper.state
+    assert rows[:, :7].tolist() == [[0, 0, 0, 0, 0, 0, 1]] * 3  # at the origin, unturned
+    sweeper.put_poses([2, 0], [((1.0, 2.0, 3.0), (0.0, 0.0, 0.0, 1.0)), ((4.0, 5.0, 6.0), (1.0, 0.0, 0.0, 0.0))])
     assert rows[2, :7].tolist() == [1, 2, 3, 0, 0, 0, 1] and rows[0, :7].tolist() == [4, 5, 6, 1, 0, 0, 0]
-    _core.put_twists(rows, [1, 0], [((1.0, 0.0, 0.0), (0.0, 0.0, 1.0)), ((0.0, 2.0, 0.0), (3.0, 0.0, 0.0))])
+    sweeper.put_twists([1, 0], [((1.0, 0.0, 0.0), (0.0, 0.0, 1.0)), ((0.0, 2.0, 0.0), (3.0, 0.0, 0.0))])
     assert rows[1, 7:].tolist() == [1, 0, 0, 0, 0, 1] and rows[0, 7:].tolist() == [0, 2, 0, 3, 0, 0]
+    del sweeper  # the view keeps the rows alive
+    assert rows[1, 12] == 1.0
+    sweeper = sweeper_of([(0, np.eye(4), np.full(3, 0.1))], np.ones(1), np.ones(1), 1)
     with pytest.raises(ValueError, match="equal length"):
-        _core.put_poses(rows, [0, 1], [((1.0, 2.0, 3.0), (0.0, 0.0, 0.0, 1.0))])
+        sweeper.put_poses([0, 0], [((1.0, 2.0, 3.0), (0.0, 0.0, 0.0, 1.0))])
     with pytest.raises(IndexError, match="frame index 5"):
-        _core.put_poses(rows, [5], [((1.0, 2.0, 3.0), (0.0, 0.0, 0.0, 1.0))])
+        sweeper.put_poses([5], [((1.0, 2.0, 3.0), (0.0, 0.0, 0.0, 1.0))])
+    with pytest.raises(IndexError, match="box index 3"):
+        sweeper.touches(DT, [3], 1, True, FIT_TOLERANCE, _core.Tolerances(), 0.0, 0.02)
 
 
 def test_bad_indices_raise_index_error():

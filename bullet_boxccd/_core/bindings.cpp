@@ -307,34 +307,6 @@ double py_first_depth(const PathBoxes &boxes, double tau_from, double target) {
     return first_depth(boxes.data(), boxes.data() + kPathBoxSize, tau_from, target);
 }
 
-// (indices of the n boxes whose reach exceeds sweep_reach, the largest reach of the
-// others, the frames of the fast boxes as a sorted list); None if no box is fast.
-nb::object fast_boxes(const States &state, double dt, size_t n, const int64_t *box_frame, const double *radius,
-                     const double *sweep_reach) {
-    auto [out, owner] = new_buffer<int64_t>(n);
-    size_t k = 0;
-    double slack = 0.0;
-    std::vector<int64_t> frames;
-    for (size_t i = 0; i < n; ++i) {
-        const int64_t f = box_frame[i];
-        check_index(f, state.shape(0), "frame");
-        const double r = step_reach(state.data() + kFrameStateSize * f, dt, radius[i]);
-        if (!std::isfinite(r)) continue;  // a broken body (pybullet's NaN) is left to pybullet
-        if (r > sweep_reach[i]) {
-            out[k++] = int64_t(i);
-            frames.push_back(f);
-        } else {
-            slack = std::fmax(slack, r);
-        }
-    }
-    if (k == 0) return nb::none();
-    std::sort(frames.begin(), frames.end());
-    frames.erase(std::unique(frames.begin(), frames.end()), frames.end());
-    nb::list fl;
-    for (const int64_t f : frames) fl.append(f);
-    return nb::make_tuple(Out<int64_t, -1>(out, {k}, owner), slack, fl);
-}
-
 // Path rows of `n` boxes (indices into tables of n_all boxes) into out.
 void fill_path_rows(const States &state, double dt, const int64_t *boxes, size_t n, size_t n_all,
                     const int64_t *box_frame, const double *X_CS, const double *half, double *out) {
@@ -488,25 +460,15 @@ void put_reads(MutStates &state, nb::handle frames, nb::handle values, int colum
     }
 }
 
-// Velocity reads ((vx, vy, vz), (wx, wy, wz)) of `frames` into their rows.
-void py_put_twists(MutStates &state, nb::handle frames, nb::handle twists) {
-    put_reads(state, frames, twists, FrameState::kVelocity, {3, 3});
-}
-
-// Pose reads ((x, y, z), (qx, qy, qz, qw)) of `frames` into their rows.
-void py_put_poses(MutStates &state, nb::handle frames, nb::handle poses) {
-    put_reads(state, frames, poses, FrameState::kPosition, {3, 4});
-}
-
 // Column layouts (name -> (start, stop)) of the frame state and the path row.
 nb::dict layouts() {
     using fs = FrameState;
     using pr = PathRow;
     nb::dict state, row, out;
-    state["position"] = nb::make_tuple(FrameState::kPosition, fs::kOrientation);
-    state["orientation"] = nb::make_tuple(fs::kOrientation, FrameState::kVelocity);
-    state["velocity"] = nb::make_tuple(FrameState::kVelocity, FrameState::kAngularVelocity);
-    state["angular_velocity"] = nb::make_tuple(FrameState::kAngularVelocity, fs::kSize);
+    state["position"] = nb::make_tuple(fs::kPosition, fs::kOrientation);
+    state["orientation"] = nb::make_tuple(fs::kOrientation, fs::kVelocity);
+    state["velocity"] = nb::make_tuple(fs::kVelocity, fs::kAngularVelocity);
+    state["angular_velocity"] = nb::make_tuple(fs::kAngularVelocity, fs::kSize);
     row["pose_after"] = nb::make_tuple(pr::kPoseAfter, pr::kDisplacement);
     row["displacement"] = nb::make_tuple(pr::kDisplacement, pr::kAxis);
     row["axis"] = nb::make_tuple(pr::kAxis, pr::kAngle);
@@ -562,54 +524,83 @@ class Sweeper {
             const Index<-1> &group, const Index<-1> &mask, int filter_mode)
         : n_(box_frame.shape(0)), box_frame_(copy(box_frame)), radius_(copy(radius)), X_CS_(copy(X_CS)),
           half_(copy(half)), sweep_reach_(copy(sweep_reach)), frame_body_(copy(frame_body)),
-          self_collides_(copy(self_collides)), group_(copy(group)), mask_(copy(mask)), mode_(filter_mode) {
+          self_collides_(copy(self_collides)), group_(copy(group)), mask_(copy(mask)), mode_(filter_mode),
+          state_(kFrameStateSize * frame_body.shape(0), 0.0) {
         const size_t nf = frame_body.shape(0);
         if (radius.shape(0) != n_ || X_CS.shape(0) != n_ || half.shape(0) != n_ || sweep_reach.shape(0) != n_)
             throw nb::value_error("box tables differ in length");
         if (self_collides.shape(0) != nf || group.shape(0) != nf || mask.shape(0) != nf)
             throw nb::value_error("frame tables differ in length");
         for (const int64_t f : box_frame_) check_index(f, nf, "frame");
+        for (size_t f = 0; f < nf; ++f) state_[kFrameStateSize * f + FrameState::kOrientation + 3] = 1.0;
     }
 
-    // With `frames` and `twists` (pybullet's velocity reads of those frames, as for
-    // put_twists) written into `state` first.
-    nb::object fast(MutStates &state, double dt, nb::handle frames, nb::handle twists) const {
-        if (!frames.is_none()) put_reads(state, frames, twists, FrameState::kVelocity, {3, 3});
-        return fast_boxes(States(state), dt, n_, box_frame_.data(), radius_.data(), sweep_reach_.data());
+    // The frames' state, a numpy view of the sweeper's own rows (F, 13): the calls below
+    // read it without converting an array.
+    Out<double, -1, kFrameStateSize> state(nb::handle self) {
+        return Out<double, -1, kFrameStateSize>(state_.data(), {state_.size() / kFrameStateSize,
+                                                                size_t(kFrameStateSize)}, self);
     }
 
-    // (path rows, swept bounds) of the boxes.
-    nb::tuple rows(const States &state, double dt, const Index<-1> &boxes) const {
-        const size_t n = boxes.shape(0);
+    // pybullet's reads of `frames` (a list of frame indices) as they come, into the state.
+    void put_twists(nb::handle frames, nb::handle twists) {
+        put_reads(frames, twists, FrameState::kVelocity, {3, 3});
+    }
+    void put_poses(nb::handle frames, nb::handle poses) { put_reads(frames, poses, FrameState::kPosition, {3, 4}); }
+
+    // The fast boxes of the state, with `frames` and `twists` (velocity reads) put first:
+    // None if none is fast, else ([box], the largest reach of the others, [their frames]).
+    nb::object fast(double dt, nb::handle frames, nb::handle twists) {
+        if (!frames.is_none()) put_twists(frames, twists);
+        std::vector<int64_t> boxes, fast_frames;
+        double slack = 0.0;
+        for (size_t i = 0; i < n_; ++i) {
+            const int64_t f = box_frame_[i];
+            const double r = step_reach(state_.data() + kFrameStateSize * f, dt, radius_[i]);
+            if (!std::isfinite(r)) continue;  // a broken body (pybullet's NaN) is left to pybullet
+            if (r > sweep_reach_[i]) {
+                boxes.push_back(int64_t(i));
+                fast_frames.push_back(f);
+            } else {
+                slack = std::fmax(slack, r);
+            }
+        }
+        if (boxes.empty()) return nb::none();
+        std::sort(fast_frames.begin(), fast_frames.end());
+        fast_frames.erase(std::unique(fast_frames.begin(), fast_frames.end()), fast_frames.end());
+        return nb::make_tuple(to_list(boxes), slack, to_list(fast_frames));
+    }
+
+    // (path rows, swept bounds) of the boxes (a list of box indices).
+    nb::tuple rows(double dt, nb::handle boxes) const {
+        const std::vector<int64_t> ids = from_list(boxes, n_, "box");
+        const size_t n = ids.size();
         auto [rows, owner] = new_buffer<double>(kPathBoxSize * n);
         auto [bounds, bounds_owner] = new_buffer<double>(6 * n);
-        path_rows_and_bounds(state, dt, boxes.data(), n, rows, bounds);
+        path_rows_and_bounds(dt, ids.data(), n, rows, bounds);
         return nb::make_tuple(Out<double, -1, kPathBoxSize>(rows, {n, size_t(kPathBoxSize)}, owner),
                               Out<double, -1, 6>(bounds, {n, 6}, bounds_owner));
     }
 
-    // The first n_moving of `boxes` against each other and the rest of them (with
-    // all_others: against every other box of the world, appended to `boxes`): (number
-    // of candidate pairs, solver calls, None if no pair touches, else (boxes, path
-    // rows, candidate pairs of rows, [(row a, row b, first touch)] of the pairs that
-    // touch)).
-    nb::tuple touches(const States &state, double dt, const Index<-1> &boxes, int64_t n_moving, bool all_others,
-                      double fit_tolerance, const Tolerances &tol, double penetration, double creep) const {
-        std::vector<int64_t> ids(boxes.data(), boxes.data() + boxes.shape(0));
+    // The first n_moving of `boxes` (a list of box indices) against each other and the
+    // rest of them (with all_others: against every other box of the world, appended to
+    // `boxes`): (number of candidate pairs, solver calls, None if no pair touches, else
+    // (boxes, path rows, candidate pairs of rows, [(row a, row b, first touch)] of the
+    // pairs that touch)).
+    nb::tuple touches(double dt, nb::handle boxes, int64_t n_moving, bool all_others, double fit_tolerance,
+                      const Tolerances &tol, double penetration, double creep) const {
+        std::vector<int64_t> ids = from_list(boxes, n_, "box");
         if (n_moving < 0 || size_t(n_moving) > ids.size()) throw nb::value_error("touches: n_moving out of range");
         if (all_others) {
             std::vector<uint8_t> in(n_, 0);
-            for (const int64_t b : ids) {
-                check_index(b, n_, "box");
-                in[b] = 1;
-            }
+            for (const int64_t b : ids) in[b] = 1;
             for (size_t b = 0; b < n_; ++b)
                 if (!in[b]) ids.push_back(int64_t(b));
         }
         const size_t n = ids.size();
         auto [rows, rows_owner] = new_buffer<double>(kPathBoxSize * n);
         std::vector<double> bounds(6 * n);
-        path_rows_and_bounds(state, dt, ids.data(), n, rows, bounds.data());
+        path_rows_and_bounds(dt, ids.data(), n, rows, bounds.data());
         std::vector<int64_t> frame(n);
         for (size_t i = 0; i < n; ++i) frame[i] = box_frame_[ids[i]];
         const FrameFilter filter{group_.data(), mask_.data(), mode_};
@@ -626,10 +617,7 @@ class Sweeper {
         nb::list hits;
         for (size_t k = 0; k < m; ++k)
             if (!std::isnan(tau[k])) hits.append(nb::make_tuple(pairs[k].first, pairs[k].second, tau[k]));
-        if (hits.size() == 0) {
-            // The buffers' owners free them as they go.
-            return nb::make_tuple(m, solves, nb::none());
-        }
+        if (hits.size() == 0) return nb::make_tuple(m, solves, nb::none());  // the owners free the buffers
         auto [box_out, boxes_owner] = new_buffer<int64_t>(n);
         std::copy(ids.begin(), ids.end(), box_out);
         return nb::make_tuple(m, solves,
@@ -639,10 +627,43 @@ class Sweeper {
     }
 
   private:
-    void path_rows_and_bounds(const States &state, double dt, const int64_t *boxes, size_t n, double *rows,
-                              double *bounds) const {
-        fill_path_rows(state, dt, boxes, n, n_, box_frame_.data(), X_CS_.data(), half_.data(), rows);
-        for (size_t i = 0; i < n; ++i) swept_bounds(rows + kPathBoxSize * i, bounds + 6 * i, bounds + 6 * i + 3);
+    void path_rows_and_bounds(double dt, const int64_t *boxes, size_t n, double *rows, double *bounds) const {
+        for (size_t i = 0; i < n; ++i) {
+            const int64_t b = boxes[i];
+            path_row(state_.data() + kFrameStateSize * box_frame_[b], dt, X_CS_.data() + 16 * b, half_.data() + 3 * b,
+                     rows + kPathBoxSize * i);
+            swept_bounds(rows + kPathBoxSize * i, bounds + 6 * i, bounds + 6 * i + 3);
+        }
+    }
+
+    void put_reads(nb::handle frames, nb::handle values, int column, std::initializer_list<int> parts) {
+        MutStates view(state_.data(), {state_.size() / kFrameStateSize, size_t(kFrameStateSize)});
+        ::put_reads(view, frames, values, column, parts);
+    }
+
+    static nb::list to_list(const std::vector<int64_t> &v) {
+        nb::list out;
+        for (const int64_t x : v) out.append(x);
+        return out;
+    }
+
+    // A list (or any sequence) of indices below n.
+    static std::vector<int64_t> from_list(nb::handle seq, size_t n, const char *what) {
+        PyObject *fast = PySequence_Fast(seq.ptr(), "expected a sequence of indices");
+        if (!fast) throw nb::python_error();
+        const Py_ssize_t m = PySequence_Fast_GET_SIZE(fast);
+        std::vector<int64_t> out(size_t(m > 0 ? m : 0));
+        for (Py_ssize_t i = 0; i < m; ++i) {
+            const long long x = PyLong_AsLongLong(PySequence_Fast_GET_ITEM(fast, i));
+            if (x == -1 && PyErr_Occurred()) {
+                Py_DECREF(fast);
+                throw nb::python_error();
+            }
+            out[size_t(i)] = x;
+        }
+        Py_DECREF(fast);
+        for (const int64_t x : out) check_index(x, n, what);
+        return out;
     }
 
     size_t n_;
@@ -652,6 +673,7 @@ class Sweeper {
     std::vector<uint8_t> self_collides_;
     std::vector<int64_t> group_, mask_;
     int mode_;
+    std::vector<double> state_;
 };
 
 // (coeffs (3, 4, 4), error bound) of one box's path over [lo, hi].
@@ -744,12 +766,14 @@ NB_MODULE(_core, m) {
              nb::arg("box_frame"), nb::arg("radius"), nb::arg("X_CS"), nb::arg("half"), nb::arg("sweep_reach"),
              nb::arg("frame_body"), nb::arg("self_collides"), nb::arg("group"), nb::arg("mask"),
              nb::arg("filter_mode"))
-        .def("fast", &Sweeper::fast, nb::arg("state"), nb::arg("dt"), nb::arg("frames") = nb::none(),
-             nb::arg("twists") = nb::none())
-        .def("rows", &Sweeper::rows, nb::arg("state"), nb::arg("dt"), nb::arg("boxes"))
-        .def("touches", &Sweeper::touches, nb::arg("state"), nb::arg("dt"), nb::arg("boxes"), nb::arg("n_moving"),
-             nb::arg("all_others"), nb::arg("fit_tolerance"), nb::arg("tolerances"), nb::arg("penetration"),
-             nb::arg("creep"));
+        .def_prop_ro("state", [](nb::handle self) { return nb::cast<Sweeper &>(self).state(self); },
+                     "The frames' state (F, 13): a numpy view of the sweeper's own rows.")
+        .def("put_twists", &Sweeper::put_twists, nb::arg("frames"), nb::arg("twists"))
+        .def("put_poses", &Sweeper::put_poses, nb::arg("frames"), nb::arg("poses"))
+        .def("fast", &Sweeper::fast, nb::arg("dt"), nb::arg("frames") = nb::none(), nb::arg("twists") = nb::none())
+        .def("rows", &Sweeper::rows, nb::arg("dt"), nb::arg("boxes"))
+        .def("touches", &Sweeper::touches, nb::arg("dt"), nb::arg("boxes"), nb::arg("n_moving"), nb::arg("all_others"),
+             nb::arg("fit_tolerance"), nb::arg("tolerances"), nb::arg("penetration"), nb::arg("creep"));
     m.def("frame_poses", &py_frame_poses, nb::arg("state"), nb::arg("dt"), nb::arg("frames"), nb::arg("taus"));
     m.def("candidate_pairs", &py_candidate_pairs, nb::arg("bounds"), nb::arg("n_fast"), nb::arg("frame"),
           nb::arg("frame_body"), nb::arg("self_collides"), nb::arg("group"), nb::arg("mask"), nb::arg("filter_mode"));
@@ -758,8 +782,6 @@ NB_MODULE(_core, m) {
     m.def("layouts", &layouts);
     m.def("row_poses", &py_row_poses, nb::arg("rows"), nb::arg("taus"));
     m.def("bullet_step_angle", &bullet_step_angle, nb::arg("speed"), nb::arg("dt"));
-    m.def("put_twists", &py_put_twists, nb::arg("state"), nb::arg("frames"), nb::arg("twists"));
-    m.def("put_poses", &py_put_poses, nb::arg("state"), nb::arg("frames"), nb::arg("poses"));
     m.def("resolve_collision", &py_resolve_collision, nb::arg("bodies"), nb::arg("points"), nb::arg("normal"),
           nb::arg("e"), nb::arg("mu"), nb::arg("sweeps"));
     m.def("window_rows", &py_window_rows, nb::arg("rows"), nb::arg("lo"), nb::arg("hi"));

@@ -161,18 +161,26 @@ double first_depth(const double *box_a, const double *box_b, double tau_from, do
     if (std::isnan(depth_from)) depth_from = path_depth(box_a, box_b, tau_from);
     const double need = target - std::fmax(depth_from, 0.0);
     const double speed = (travel(box_a) + travel(box_b)) * span;
-    double lo = tau_from, hi = kNaN;
-    for (int k = 48; k >= 0; --k) {
-        const double t = tau_from + std::ldexp(span, -k);
-        if (k && std::ldexp(speed, -k) < need) {  // (speed NaN: no skip)
-            lo = t;
-            continue;
-        }
+    // The first sample taken: the largest k <= 48 with speed 2^-k >= need (k = 0 is
+    // always taken; with speed not a number, every k is).
+    int k0 = 48;
+    if (need > 0.0 && speed >= 0.0) {
+        const double x = speed / need;
+        int e = 49;
+        if (std::isfinite(x)) std::frexp(x, &e);  // x = m 2^e, m in [0.5, 1): floor(log2 x) = e - 1
+        k0 = std::clamp(e - 1, 0, 48);
+        while (k0 < 48 && !(std::ldexp(speed, -(k0 + 1)) < need)) ++k0;  // the division's rounding
+        while (k0 > 0 && std::ldexp(speed, -k0) < need) --k0;
+    }
+    double lo = k0 < 48 ? tau_from + std::ldexp(span, -(k0 + 1)) : tau_from, hi = kNaN;
+    for (double step = std::ldexp(span, -k0); ; step *= 2.0) {  // 2^-k of the rest of the step, k = k0 .. 0
+        const double t = tau_from + step;
         if (depth_reaches(box_a, box_b, t, target)) {
             hi = t;
             break;
         }
         lo = t;
+        if (!(step < span)) break;
     }
     if (std::isnan(hi)) return hi;
     for (int it = 0; it < 200 && hi - lo > 1e-15; ++it) {

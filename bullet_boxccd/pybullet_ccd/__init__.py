@@ -35,7 +35,6 @@ from dataclasses import replace
 
 import numpy as np
 
-from .. import _core
 from .._arrays import as_float_array
 from ..solver import DEFAULT_TOLERANCES, InvalidInputError, Tolerances
 from ._hooks import last_serial, raw, replay_impulses
@@ -117,10 +116,7 @@ class BoxCCD:
             self.stats.rediscoveries += 1
             t = self.world.tables
             self._sweep_reach = self.sweep_threshold * 2.0 * t.half.min(axis=1) if len(t.half) else np.zeros(0)
-            self._state = FrameState(self.cid, t)
-            f = t.filters
-            self._sweeper = _core.Sweeper(t.box_frame, t.radius, t.X_CS, t.half, self._sweep_reach, t.body,
-                                          t.self_collides, f.group, f.mask, f.mode)
+            self._state = FrameState(self.cid, t, self._sweep_reach)
             self.stats.tracked_boxes = len(t.half)
             small = t.half.min() if len(t.half) else math.inf
             if self.penetration >= 0.01 * small:
@@ -163,7 +159,7 @@ class BoxCCD:
             # (the one read per body pybullet's API forces), and stop there if nothing is fast.
             raw.stepSimulation(physicsClientId=cid)
             st = self._state
-            fast = self._sweeper.fast(st.rows, self._dt, st.moving, st.twists())
+            fast = st.sweeper.fast(self._dt, st.moving, st.twists())
             self.stats.steps += 1
             if fast is None:
                 return []
@@ -182,8 +178,7 @@ class BoxCCD:
             return self._step(self._dt, 0.0, self._dt, fast=fast)
         st, t, dt = self._state, self.world.tables, self._dt
         st.begin_kinematic((), ())
-        sw = sweep(self.cid, t, st, dt, self._sweeper, self.fit_tolerance, self.tolerances, self.penetration,
-                   self.stats, t0, fast)
+        sw = sweep(self.cid, t, st, dt, self.fit_tolerance, self.tolerances, self.penetration, self.stats, t0, fast)
         if sw is None:
             return []
         t3 = time.perf_counter()
@@ -260,8 +255,7 @@ class BoxCCD:
         if fast is None:
             st.read_velocities()
         st.end_kinematic(h)
-        sw = sweep(self.cid, t, st, h, self._sweeper, self.fit_tolerance, self.tolerances, self.penetration,
-                   self.stats, t0, fast)
+        sw = sweep(self.cid, t, st, h, self.fit_tolerance, self.tolerances, self.penetration, self.stats, t0, fast)
         jw = jump_sweep(self.cid, t, st, h, self.fit_tolerance, self.tolerances, self.penetration, self.stats)
         if sw is None and jw is None:
             return [], 1.0

@@ -20,7 +20,7 @@ import numpy as np
 
 from .. import _core
 from ._hooks import raw
-from .layout import POSE, STATE_SIZE
+from .layout import POSE
 from .world import STATIC
 
 __all__ = ["FrameState"]
@@ -43,10 +43,14 @@ def _readers(cid, body, link):
 class FrameState:
     """The (F, 13) state of every frame after the current step, and the kinematic frames."""
 
-    def __init__(self, cid, tables):
+    def __init__(self, cid, tables, sweep_reach):
         self.cid, self.tables = cid, tables
-        self.rows = np.zeros((len(tables.keys), STATE_SIZE))
-        self.rows[:, 6] = 1.0
+        f = tables.filters
+        # The core's sweeper holds the box tables and the rows (``rows`` is a numpy view of
+        # them): a step's calls into the core pass no array.
+        self.sweeper = _core.Sweeper(tables.box_frame, tables.radius, tables.X_CS, tables.half, sweep_reach,
+                                     tables.body, tables.self_collides, f.group, f.mask, f.mode)
+        self.rows = self.sweeper.state
         self._pose, self._twist = zip(*(_readers(cid, b, link) for b, link in tables.keys)) if tables.keys else ((), ())
         static = np.flatnonzero(tables.kind == STATIC).tolist()
         self._static = set(static)
@@ -64,12 +68,12 @@ class FrameState:
         return [read() for read in self._moving_twists]
 
     def read_velocities(self):
-        _core.put_twists(self.rows, self.moving, self.twists())
+        self.sweeper.put_twists(self.moving, self.twists())
 
     def read_poses(self, frames):
         if frames:
             pose = self._pose
-            _core.put_poses(self.rows, frames, [pose[f]() for f in frames])
+            self.sweeper.put_poses(frames, [pose[f]() for f in frames])
             self.fresh.update(frames)
 
     def stale(self, frames):
@@ -97,7 +101,7 @@ class FrameState:
         if not frames:
             return
         self.read_poses(frames)
-        _core.put_twists(self.rows, frames, [self._twist[f]() for f in frames])
+        self.sweeper.put_twists(frames, [self._twist[f]() for f in frames])
         starts = _core.frame_poses(self.rows, dt, np.array(frames, dtype=np.int64), np.zeros(len(frames)))
         for f, p1 in zip(frames, starts):
             e0 = self.pose0[f]

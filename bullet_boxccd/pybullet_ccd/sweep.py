@@ -54,13 +54,13 @@ _READS_PER_QUERY = 4
 _OWN_BROAD_PHASE_BOXES = 64
 
 
-def sweep(cid, tables, state, dt, sweeper, fit_tolerance, tolerances, penetration, stats, t0, fast=None):
+def sweep(cid, tables, state, dt, fit_tolerance, tolerances, penetration, stats, t0, fast=None):
     """Sweep the step just taken (``state`` holds the velocities of the moving frames and
-    the kinematic frames' poses; ``sweeper`` the core's copy of ``tables``; ``fast``
-    what ``sweeper.fast`` found, if it was asked already). Returns a Sweep, or None if
-    nothing touched."""
+    the kinematic frames' poses; ``fast`` what ``state.sweeper.fast`` found, if it was
+    asked already). Returns a Sweep, or None if nothing touched."""
+    sweeper = state.sweeper
     if fast is None:
-        fast = sweeper.fast(state.rows, dt)
+        fast = sweeper.fast(dt)
         if fast is None:
             stats.seconds["state"] += time.perf_counter() - t0
             return None
@@ -79,16 +79,14 @@ def sweep(cid, tables, state, dt, sweeper, fit_tolerance, tolerances, penetratio
         # Only the partners pybullet's own broad phase finds near the fast boxes' swept
         # bounds (a slow body can be anywhere within its reach of the pose it knows, so
         # the query is widened by the largest such reach).
-        _, bounds = sweeper.rows(state.rows, dt, fast)
+        _, bounds = sweeper.rows(dt, fast)
         partners = _partners(cid, tables, bounds, slack, fast_frames)
         state.read_poses(state.stale(partners))
-        if partners:
-            boxes = np.concatenate([fast, np.array([b for f in partners for b in tables.frame_boxes[f]],
-                                                   dtype=np.int64)])
+        boxes = fast + [b for f in partners for b in tables.frame_boxes[f]]
     t2 = time.perf_counter()
     stats.seconds["broad_phase"] += t2 - t1
-    n_pairs, solves, found = sweeper.touches(state.rows, dt, boxes, len(fast), all_others, fit_tolerance,
-                                             tolerances._core, penetration, CREEP)
+    n_pairs, solves, found = sweeper.touches(dt, boxes, len(fast), all_others, fit_tolerance, tolerances._core,
+                                             penetration, CREEP)
     stats.candidate_pairs += n_pairs
     stats.solver_rows += solves
     stats.seconds["solve"] += time.perf_counter() - t2
