@@ -222,6 +222,17 @@ void ChainMotion::joint_at(int link, double tau, double *J, double &s) const {
     J[3] = 1.0;
 }
 
+void ChainMotion::joint_positions(double tau, double *q) const {
+    for (int i = 0; i < chain_->n_links(); ++i) {
+        const ChainLink &l = chain_->link(i);
+        double J[4], s;
+        joint_at(i, tau, J, s);
+        if (l.type == JointType::Spherical) std::copy(J, J + 4, q + l.q_index);
+        if (l.type == JointType::Prismatic) q[l.q_index] = s;
+        if (l.type == JointType::Revolute) q[l.q_index] = joints_[i].q1[0] - (1.0 - tau) * joints_[i].angle;
+    }
+}
+
 void ChainMotion::child_pose(int link, const double *parent, double tau, double *out) const {
     const ChainLink &l = chain_->link(link);
     double J[4], s, q0[4], pivot[3], arm[3];
@@ -365,7 +376,8 @@ FitBound ChainMotion::fit_bound(int link, double lo, double hi) const {
     turn(base_angle_, &pose[7 * m], base_axis_);
     v1.a += base_shift_;
     const double scale = kInterpolation * len * len * len, slack = kFitRounding * (m + 2);
-    return FitBound{scale * v3.a + slack * lengths, scale * v3.b + slack, scale * spin * spin * spin};
+    return FitBound{scale * v3.a + slack * lengths, scale * v3.b + slack, scale * spin * spin * spin,
+                    h * v1.a + slack * lengths, h * v1.b + slack};
 }
 
 FitBound ChainMotion::fit(int link, double lo, double hi, double *coeffs) const {
@@ -404,12 +416,20 @@ double LinkBoxPath::fit(double lo, double hi, double *coeffs) const {
     double X[3][16];
     const double taus[3] = {lo, 0.5 * (lo + hi), hi};
     for (int k = 0; k < 3; ++k) pose(taus[k], X[k]);
-    interpolate(X[0], X[1], X[2], coeffs);
     // A box point x is off its fitted place by at most e = point0 + point1 reach;
     // the fitted 3x3 part M is within `rotation` of a rotation, so the box point y
     // whose fitted place is x's true one has |y - x| = |M^-1 e| <= e / (1 - rotation).
     const FitBound b = motion_->fit_bound(link_, lo, hi);
-    return b.rotation < 1.0 ? (b.point0 + b.point1 * reach_) / (1.0 - b.rotation) : kInf;
+    const double quadratic = b.rotation < 1.0 ? (b.point0 + b.point1 * reach_) / (1.0 - b.rotation) : kInf;
+    // Too fast for a quadratic (a joint turning radians per piece): the box held still
+    // at its middle pose, grown by how far its points get from there, is closer.
+    const double still = b.sweep0 + b.sweep1 * reach_;
+    if (still < quadratic) {
+        interpolate(X[1], X[1], X[1], coeffs);
+        return still;
+    }
+    interpolate(X[0], X[1], X[2], coeffs);
+    return quadratic;
 }
 
 int LinkBoxPath::pieces(double fit_tolerance) const {

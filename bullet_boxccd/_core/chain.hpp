@@ -78,6 +78,9 @@ struct FitBound {
     double point0, point1;
     // The fitted 3x3 part is off the true rotation by at most this (spectral norm).
     double rotation;
+    // A point within r of the frame's origin stays within sweep0 + sweep1 r of
+    // where it is at the piece's middle (what a constant fit errs by).
+    double sweep0, sweep1;
 };
 
 // One body's links over one step: the chain and the state read after the step.
@@ -97,6 +100,9 @@ class ChainMotion {
     void link_pose(int link, double tau, double *pose) const;
     // Every link's frame at tau: (n_links, 7).
     void link_poses(double tau, double *poses) const;
+    // The joints' coordinates at tau, flat as q (chain.n_q()): what
+    // resetJointStateMultiDof takes to put the body where it is at tau.
+    void joint_positions(double tau, double *q) const;
     // The quadratic motion of link `link`'s frame over [lo, hi] (on s in [0, 1],
     // interpolating its pose at lo, mid and hi; 3x4x4 row-major, as fit_path)
     // and how far it can be from the true path (see FitBound and chain.cpp).

@@ -122,20 +122,28 @@ Out<7> base_pose(const ChainMotion &motion, double tau) {
     return a;
 }
 
+Out<-1> joint_positions(const ChainMotion &motion, double tau) {
+    check_tau(tau);
+    double *out;
+    auto a = new_array<-1>({size_t(motion.chain().n_q())}, out);
+    motion.joint_positions(tau, out);
+    return a;
+}
+
 nb::tuple link_fit(const ChainMotion &motion, int link, double lo, double hi) {
     check_link(motion.chain(), link);
     check_piece(lo, hi);
     double *out;
     auto coeffs = new_array<3, 4, 4>({3, 4, 4}, out);
     const FitBound b = motion.fit(link, lo, hi, out);
-    return nb::make_tuple(coeffs, b.point0, b.point1, b.rotation);
+    return nb::make_tuple(coeffs, b.point0, b.point1, b.rotation, b.sweep0, b.sweep1);
 }
 
 nb::tuple link_fit_bound(const ChainMotion &motion, int link, double lo, double hi) {
     check_link(motion.chain(), link);
     check_piece(lo, hi);
     const FitBound b = motion.fit_bound(link, lo, hi);
-    return nb::make_tuple(b.point0, b.point1, b.rotation);
+    return nb::make_tuple(b.point0, b.point1, b.rotation, b.sweep0, b.sweep1);
 }
 
 LinkBoxPath make_link_box(const ChainMotion &motion, int link, const Doubles &X_CS, const Doubles &half) {
@@ -158,6 +166,16 @@ Out<4, 4> path_pose(const BoxPath &path, double tau) {
     double *out;
     auto a = new_array<4, 4>({4, 4}, out);
     path.pose(tau, out);
+    return a;
+}
+
+Out<-1, 4, 4> path_poses(const BoxPath &path, const Doubles &taus) {
+    expect(taus, "taus", {-1});
+    const size_t n = taus.shape(0);
+    for (size_t k = 0; k < n; ++k) check_tau(taus.data()[k]);
+    double *out;
+    auto a = new_array<-1, 4, 4>({n, 4, 4}, out);
+    for (size_t k = 0; k < n; ++k) path.pose(taus.data()[k], out + 16 * k);
     return a;
 }
 
@@ -223,13 +241,15 @@ void bind_chain(nb::module_ &m) {
         .def("base_pose", &base_pose, nb::arg("tau"))
         .def("link_pose", &link_pose, nb::arg("link"), nb::arg("tau"))
         .def("link_poses", &link_poses, nb::arg("tau"))
+        .def("joint_positions", &joint_positions, nb::arg("tau"))
         .def("fit", &link_fit, nb::arg("link"), nb::arg("lo"), nb::arg("hi"))
         .def("fit_bound", &link_fit_bound, nb::arg("link"), nb::arg("lo"), nb::arg("hi"));
     nb::class_<BoxPath>(m, "BoxPath", "A box on a within-step path (box_path.hpp); see RowBoxPath, LinkBoxPath.")
         .def("pose", &path_pose, nb::arg("tau"))
+        .def("poses", &path_poses, nb::arg("taus"))
         .def("fit", &path_fit, nb::arg("lo"), nb::arg("hi"))
         .def("pieces", &path_pieces, nb::arg("fit_tolerance"))
-        .def_prop_ro("half_extents", &path_half_extents);
+        .def_prop_ro("half_extents", &path_half_extents, nb::rv_policy::move);
     nb::class_<RowBoxPath, BoxPath>(m, "RowBoxPath", "A box on a free frame's path row.")
         .def("__init__", [](RowBoxPath *self, const Doubles &row) { new (self) RowBoxPath(make_row_box(row)); },
              nb::arg("row"));
