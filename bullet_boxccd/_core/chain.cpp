@@ -93,6 +93,72 @@ void interpolate(const double *X0, const double *X1, const double *X2, double *c
     }
 }
 
+struct Vec {
+    double x[3] = {0.0, 0.0, 0.0};
+};
+Vec operator+(const Vec &a, const Vec &b) { return {{a.x[0] + b.x[0], a.x[1] + b.x[1], a.x[2] + b.x[2]}}; }
+Vec operator*(double k, const Vec &a) { return {{k * a.x[0], k * a.x[1], k * a.x[2]}}; }
+Vec cross(const Vec &a, const Vec &b) {
+    return {{a.x[1] * b.x[2] - a.x[2] * b.x[1], a.x[2] * b.x[0] - a.x[0] * b.x[2], a.x[0] * b.x[1] - a.x[1] * b.x[0]}};
+}
+
+struct Affine {  // a + b r
+    double a = 0.0, b = 0.0;
+};
+
+// The factor-wise bounds V1..V4 after a turn at rate w (>= 0) with lever arm rho (fit_bound).
+void turn_bounds(double w, const Affine &rho, Affine &v1, Affine &v2, Affine &v3, Affine &v4) {
+    const double w2 = w * w, w3 = w2 * w, w4 = w3 * w;
+    const auto step = [&](double Affine::*f) {
+        const double r = rho.*f, a1 = v1.*f, a2 = v2.*f, a3 = v3.*f;
+        v4.*f += w4 * r + 4 * w3 * a1 + 6 * w2 * a2 + 4 * w * a3;
+        v3.*f += w3 * r + 3 * w2 * a1 + 3 * w * a2;
+        v2.*f += w2 * r + 2 * w * a1;
+        v1.*f += w * r;
+    };
+    step(&Affine::a);
+    step(&Affine::b);
+}
+
+// The exact derivatives y[1..3] at the piece's middle after a turn W (fit_bound):
+// y^(j) <- sum_i C(j, i) xi^i y^(j - i), where p1 = xi^ y[0] (on the point, or on a
+// vector) and xi^ is W x on vectors.
+void advance(const Vec &W, const Vec &p1, Vec *y) {
+    const Vec p2 = cross(W, p1), p3 = cross(W, p2);
+    const Vec y1 = cross(W, y[1]), y11 = cross(W, y1), y2 = cross(W, y[2]);
+    y[3] = p3 + 3.0 * y11 + 3.0 * y2 + y[3];
+    y[2] = p2 + 2.0 * y1 + y[2];
+    y[1] = p1 + y[1];
+}
+
+// Spectral norm of the 3x3 matrix whose columns are c[0..2]: the square root of the
+// largest eigenvalue of its Gram matrix (closed form for symmetric 3x3), widened by
+// 1e-12 of the trace for rounding and never above the Frobenius norm.
+double spectral_norm(const Vec *c) {
+    double G[3][3];
+    for (int i = 0; i < 3; ++i)
+        for (int j = 0; j < 3; ++j) G[i][j] = c[i].x[0] * c[j].x[0] + c[i].x[1] * c[j].x[1] + c[i].x[2] * c[j].x[2];
+    const double trace = G[0][0] + G[1][1] + G[2][2];
+    const double off = G[0][1] * G[0][1] + G[0][2] * G[0][2] + G[1][2] * G[1][2];
+    double top;
+    if (!(off > 0.0)) {
+        top = std::max({G[0][0], G[1][1], G[2][2]});
+    } else {
+        const double q = trace / 3.0;
+        const double p = std::sqrt(((G[0][0] - q) * (G[0][0] - q) + (G[1][1] - q) * (G[1][1] - q) +
+                                    (G[2][2] - q) * (G[2][2] - q) + 2.0 * off) / 6.0);
+        double B[3][3];
+        for (int i = 0; i < 3; ++i)
+            for (int j = 0; j < 3; ++j) B[i][j] = (G[i][j] - (i == j ? q : 0.0)) / p;
+        const double det = B[0][0] * (B[1][1] * B[2][2] - B[1][2] * B[2][1]) -
+                           B[0][1] * (B[1][0] * B[2][2] - B[1][2] * B[2][0]) +
+                           B[0][2] * (B[1][0] * B[2][1] - B[1][1] * B[2][0]);
+        const double phi = std::acos(std::clamp(0.5 * det, -1.0, 1.0)) / 3.0;
+        top = q + 2.0 * p * std::cos(phi);
+    }
+    return std::sqrt(std::max(0.0, std::min(trace, top + 1e-12 * trace)));
+}
+
 std::string at_link(int64_t i) { return "link " + std::to_string(i) + ": "; }
 
 bool finite_all(const double *x, int64_t n) {
@@ -299,34 +365,49 @@ void ChainMotion::link_poses(double tau, double *poses) const {
 // at tm along w by s phi_b, and G_k is joint k (outermost first) as a screw in
 // the world at tm: a turn about the line through its pivot along its axis (a
 // revolute joint; a spherical one about qdot's direction) at rate w_k (the angle
-// per unit tau, |qdot| dt or Bullet's clamped angle), or a slide at speed s_k
-// (|qdot| dt |a|, prismatic). A point x of the link is y_1(s), where
+// per unit tau, qdot dt or Bullet's clamped angle), or a slide at velocity S_k
+// (qdot dt a, prismatic). A point x of the link is y_1(s), where
 // y_k = G_k y_{k+1} and y_{m+1} = x: innermost first, each factor moves the
 // point by a constant-rate motion applied after the inner ones.
 //
 // For y_k = U(s) y with U = exp(s xi), U' = xi^ U, Leibniz gives
-//   y_k'   = xi^ U y + U y'
-//   y_k''  = xi^2 U y + 2 xi^ U y' + U y''
-//   y_k''' = xi^3 U y + 3 xi^2 U y' + 3 xi^ U y'' + U y'''.
-// A turn at rate w about a line L: xi^ applied to a point p is w u x (p - o) (o
-// on L), of norm <= w dist(p, L), and applied to a vector v it is w u x v, so
-// |xi^j U y| <= w^j dist(y, L) (U turns about L, keeping the distance) and
-// |xi^j U v| <= w^j |v|. A slide at speed s: xi^ p = s u for a point, and xi^
-// is zero on vectors (xi^2 = 0). With V1..V3 bounds of |y'|, |y''|, |y'''|
-// over the piece, a turn makes
+//   y_k^(1) = xi^ U y + U y^(1)
+//   y_k^(2) = xi^2 U y + 2 xi^ U y^(1) + U y^(2)
+//   y_k^(3) = xi^3 U y + 3 xi^2 U y^(1) + 3 xi^ U y^(2) + U y^(3)
+//   y_k^(4) = xi^4 U y + 4 xi^3 U y^(1) + 6 xi^2 U y^(2) + 4 xi^ U y^(3) + U y^(4).
+// A turn at rate w about a line L (unit u, through o): xi^ applied to a point p
+// is W x (p - o) with W = w u, of norm <= |w| dist(p, L), and applied to a vector
+// v it is W x v, so |xi^j U y| <= |w|^j dist(y, L) (U turns about L, keeping the
+// distance) and |xi^j U v| <= |w|^j |v|. A slide: xi^ p = S for a point, and xi^
+// is zero on vectors (xi^2 = 0).
+//
+// Factor-wise bound. With V1..V4 bounds of |y^(1)| .. |y^(4)| over the piece, a
+// turn makes
 //   rho = dist(y_{k+1}(tm), L) + h V1    (h = (hi - lo) / 2: y moves at most that)
+//   V4 <- w^4 rho + 4 w^3 V1 + 6 w^2 V2 + 4 w V3 + V4,
 //   V3 <- w^3 rho + 3 w^2 V1 + 3 w V2 + V3,  V2 <- w^2 rho + 2 w V1 + V2,
-//   V1 <- w rho + V1
-// and a slide makes V1 <- s + V1. Starting from V = 0 (x is fixed in the link),
+//   V1 <- w rho + V1      (w = |w_k|)
+// and a slide makes V1 <- |S| + V1. Starting from V = 0 (x is fixed in the link),
 // and dist(y_{k+1}(tm), L) <= dist(link origin at tm, L) + r for a point within r
 // of the link's origin (y_{k+1}(tm) is the point's place at tm), every V is
-// affine in r. The fit's error is then at most V3 (hi - lo)^3 sqrt(3) / 216
-// (kInterpolation; tau runs over hi - lo). The exact case: one turn at radius
-// rho gives V3 = w^3 rho, the |x'''| of a circle.
+// affine in r. The fit's error is at most sup|x^(3)| (hi - lo)^3 sqrt(3) / 216
+// (kInterpolation; tau runs over hi - lo), so at most V3 times that. The exact
+// case: one turn at radius rho gives V3 = w^3 rho, the |x^(3)| of a circle.
 //
-// The rotation part alone is a product of turns at rates w_k, whose third
-// derivative is at most (sum w_k)^3 in norm (Leibniz again, each |R^(j)| <=
-// w^j), hence `rotation`.
+// Local bound. The triangle inequality above adds turns that partly cancel (two
+// joints turning opposite ways). At s = 0 every U is I, so the same recursion on
+// vectors gives x^(3) at tm exactly, cancellations included: for the link's
+// origin c, D_j (j = 1..3) from D_j <- sum_i C(j, i) xi^i D_{j-i} with D_0 = c
+// (xi^i on the point, then on vectors); a point c + delta adds A delta, A built
+// alike from delta as a vector (only turns act on it). So sup|x^(3)| <= |D_3| +
+// |A| r + h V4, with |A| the spectral norm (from the largest eigenvalue of A^T A,
+// in closed form). The point bound is the smaller of the two.
+//
+// The rotation part alone is a product of turns, whose third derivative is at
+// most (sum |w_k|)^3 in norm (Leibniz again, each |R^(j)| <= |w|^j), and at most
+// |A| + h (sum |w_k|)^4 (A is R^(3)(tm) R(tm)^T); `rotation` is the smaller.
+// Rounding: the poses and these sums are computed in doubles; kFitRounding
+// covers that relative to the lengths and to the factor-wise bound's terms.
 FitBound ChainMotion::fit_bound(int link, double lo, double hi) const {
     Ancestors scratch(chain_->n_links());
     int *path = scratch.data();
@@ -340,23 +421,25 @@ FitBound ChainMotion::fit_bound(int link, double lo, double hi) const {
     base_pose(tm, &pose[7 * m]);
     for (int i = m - 1; i >= 0; --i) child_pose(path[i], &pose[7 * (i + 1)], tm, &pose[7 * i]);
     const double *c = &pose[0];  // the link's origin at tm
-    struct Affine {              // a + b r
-        double a = 0.0, b = 0.0;
-    };
-    Affine v1, v2, v3;
+    Affine v1, v2, v3, v4;
+    Vec D[4] = {{{c[0], c[1], c[2]}}, {}, {}, {}};                           // of the origin: D[0] the point
+    Vec E[4][3] = {{{{1, 0, 0}}, {{0, 1, 0}}, {{0, 0, 1}}}, {}, {}, {}};  // of the world axes, as vectors
     double spin = 0.0, lengths = norm3(c);
     const auto turn = [&](double w, const double *o, const double *u) {  // rate w about the line (o, u)
-        w = std::fabs(w);
-        if (!(w > 0.0)) return;
-        const double co[3] = {c[0] - o[0], c[1] - o[1], c[2] - o[2]};
-        const double along = co[0] * u[0] + co[1] * u[1] + co[2] * u[2];
-        const double off[3] = {co[0] - along * u[0], co[1] - along * u[1], co[2] - along * u[2]};
+        const double aw = std::fabs(w);
+        if (!(aw > 0.0)) return;
+        const Vec co{{c[0] - o[0], c[1] - o[1], c[2] - o[2]}}, W{{w * u[0], w * u[1], w * u[2]}};
+        const double along = co.x[0] * u[0] + co.x[1] * u[1] + co.x[2] * u[2];
+        const double off[3] = {co.x[0] - along * u[0], co.x[1] - along * u[1], co.x[2] - along * u[2]};
         const Affine rho{norm3(off) + h * v1.a, 1.0 + h * v1.b};
-        const double w2 = w * w, w3 = w2 * w;
-        v3 = {w3 * rho.a + 3 * w2 * v1.a + 3 * w * v2.a + v3.a, w3 * rho.b + 3 * w2 * v1.b + 3 * w * v2.b + v3.b};
-        v2 = {w2 * rho.a + 2 * w * v1.a + v2.a, w2 * rho.b + 2 * w * v1.b + v2.b};
-        v1 = {w * rho.a + v1.a, w * rho.b + v1.b};
-        spin += w;
+        turn_bounds(aw, rho, v1, v2, v3, v4);
+        advance(W, cross(W, co), D);
+        for (int k = 0; k < 3; ++k) {
+            Vec y[4] = {E[0][k], E[1][k], E[2][k], E[3][k]};
+            advance(W, cross(W, y[0]), y);
+            for (int j = 1; j < 4; ++j) E[j][k] = y[j];
+        }
+        spin += aw;
     };
     for (int i = 0; i < m; ++i) {
         const ChainLink &l = chain_->link(path[i]);
@@ -370,14 +453,27 @@ FitBound ChainMotion::fit_bound(int link, double lo, double hi) const {
             qrot(child + 3, j.axis, u);  // the axis is fixed in the child: its world direction at tm
             turn(j.angle, pivot, u);
         } else if (l.type == JointType::Prismatic) {
+            double S[3];
+            qrot(child + 3, l.axis, S);  // the child's axis (a slide does not turn the child)
+            for (int k = 0; k < 3; ++k) D[1].x[k] += j.shift * S[k];
             v1.a += std::fabs(j.shift) * norm3(l.axis);
         }
     }
     turn(base_angle_, &pose[7 * m], base_axis_);
+    for (int k = 0; k < 3; ++k) D[1].x[k] += state_[FrameState::kVelocity + k] * dt_;
     v1.a += base_shift_;
     const double scale = kInterpolation * len * len * len, slack = kFitRounding * (m + 2);
-    return FitBound{scale * v3.a + slack * lengths, scale * v3.b + slack, scale * spin * spin * spin,
-                    h * v1.a + slack * lengths, h * v1.b + slack};
+    const double a_norm = spectral_norm(E[3]) * (1.0 + slack);
+    const double spin3 = spin * spin * spin, spin4 = spin3 * spin;
+    FitBound b;
+    b.factor0 = scale * v3.a + slack * lengths;
+    b.factor1 = scale * v3.b + slack;
+    b.local0 = scale * (norm3(D[3].x) + h * v4.a + slack * v3.a) + slack * lengths;
+    b.local1 = scale * (a_norm + h * v4.b + slack * v3.b) + slack;
+    b.rotation = scale * std::min(spin3, a_norm + h * spin4) + slack;
+    b.sweep0 = h * v1.a + slack * lengths;
+    b.sweep1 = h * v1.b + slack;
+    return b;
 }
 
 FitBound ChainMotion::fit(int link, double lo, double hi, double *coeffs) const {
@@ -416,14 +512,14 @@ double LinkBoxPath::fit(double lo, double hi, double *coeffs) const {
     double X[3][16];
     const double taus[3] = {lo, 0.5 * (lo + hi), hi};
     for (int k = 0; k < 3; ++k) pose(taus[k], X[k]);
-    // A box point x is off its fitted place by at most e = point0 + point1 reach;
+    // A box point x is off its fitted place by at most e = b.point(reach);
     // the fitted 3x3 part M is within `rotation` of a rotation, so the box point y
     // whose fitted place is x's true one has |y - x| = |M^-1 e| <= e / (1 - rotation).
     const FitBound b = motion_->fit_bound(link_, lo, hi);
-    const double quadratic = b.rotation < 1.0 ? (b.point0 + b.point1 * reach_) / (1.0 - b.rotation) : kInf;
+    const double quadratic = b.rotation < 1.0 ? b.point(reach_) / (1.0 - b.rotation) : kInf;
     // Too fast for a quadratic (a joint turning radians per piece): the box held still
     // at its middle pose, grown by how far its points get from there, is closer.
-    const double still = b.sweep0 + b.sweep1 * reach_;
+    const double still = b.sweep(reach_);
     if (still < quadratic) {
         interpolate(X[1], X[1], X[1], coeffs);
         return still;
@@ -433,10 +529,11 @@ double LinkBoxPath::fit(double lo, double hi, double *coeffs) const {
 }
 
 int LinkBoxPath::pieces(double fit_tolerance) const {
-    // The bound over the whole step shrinks as the cube of the piece's length.
+    // The whole step's bound on the third derivative holds on every piece, and the
+    // error shrinks as the cube of the piece's length.
     const FitBound b = motion_->fit_bound(link_, 0.0, 1.0);
     const double allowed = fit_tolerance * std::min({half_[0], half_[1], half_[2]});
-    const double error = b.point0 + b.point1 * reach_;
+    const double error = b.point(reach_);
     for (int n = 1; n < 64; n *= 2) {
         const double cube = double(n) * n * n;
         if (b.rotation < cube && error / (cube - b.rotation) <= allowed) return n;

@@ -71,16 +71,26 @@ class Chain {
 };
 
 // How far the fitted motion of a link's frame can be from its true path over a
-// piece of the step (ChainMotion::fit).
+// piece of the step (ChainMotion::fit). Each bound is affine in r, the distance of
+// a point from the frame's origin; the point bound is the smaller of two.
 struct FitBound {
-    // A point within r of the frame's origin is off its fitted position by at
-    // most point0 + point1 r (a length, world).
-    double point0, point1;
+    // From the rates alone, factor by factor (chain.cpp): a point within r of the
+    // frame's origin is off its fitted place by at most factor0 + factor1 r.
+    double factor0, factor1;
+    // From the exact third derivative at the piece's middle plus how much it can
+    // change over the piece: at most local0 + local1 r.
+    double local0, local1;
     // The fitted 3x3 part is off the true rotation by at most this (spectral norm).
     double rotation;
     // A point within r of the frame's origin stays within sweep0 + sweep1 r of
     // where it is at the piece's middle (what a constant fit errs by).
     double sweep0, sweep1;
+    // How far a point within r of the frame's origin can be from its fitted place (a length, world).
+    double point(double r) const {
+        const double a = factor0 + factor1 * r, b = local0 + local1 * r;
+        return a < b ? a : b;
+    }
+    double sweep(double r) const { return sweep0 + sweep1 * r; }
 };
 
 // One body's links over one step: the chain and the state read after the step.

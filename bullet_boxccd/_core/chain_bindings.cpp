@@ -9,6 +9,7 @@
 
 #include <cmath>
 #include <initializer_list>
+#include <limits>
 #include <string>
 
 #include "box_path.hpp"
@@ -130,20 +131,29 @@ Out<-1> joint_positions(const ChainMotion &motion, double tau) {
     return a;
 }
 
-nb::tuple link_fit(const ChainMotion &motion, int link, double lo, double hi) {
+void check_radius(double r) {
+    if (!(r >= 0.0 && r < std::numeric_limits<double>::infinity()))
+        throw nb::value_error(("r must be finite and >= 0, got " + std::to_string(r)).c_str());
+}
+
+// (coeffs (3, 4, 4), point bound at r, rotation bound, sweep at r).
+nb::tuple link_fit(const ChainMotion &motion, int link, double lo, double hi, double r) {
     check_link(motion.chain(), link);
     check_piece(lo, hi);
+    check_radius(r);
     double *out;
     auto coeffs = new_array<3, 4, 4>({3, 4, 4}, out);
     const FitBound b = motion.fit(link, lo, hi, out);
-    return nb::make_tuple(coeffs, b.point0, b.point1, b.rotation, b.sweep0, b.sweep1);
+    return nb::make_tuple(coeffs, b.point(r), b.rotation, b.sweep(r));
 }
 
-nb::tuple link_fit_bound(const ChainMotion &motion, int link, double lo, double hi) {
+// (point bound at r, rotation bound, sweep at r).
+nb::tuple link_fit_bound(const ChainMotion &motion, int link, double lo, double hi, double r) {
     check_link(motion.chain(), link);
     check_piece(lo, hi);
+    check_radius(r);
     const FitBound b = motion.fit_bound(link, lo, hi);
-    return nb::make_tuple(b.point0, b.point1, b.rotation, b.sweep0, b.sweep1);
+    return nb::make_tuple(b.point(r), b.rotation, b.sweep(r));
 }
 
 LinkBoxPath make_link_box(const ChainMotion &motion, int link, const Doubles &X_CS, const Doubles &half) {
@@ -242,8 +252,8 @@ void bind_chain(nb::module_ &m) {
         .def("link_pose", &link_pose, nb::arg("link"), nb::arg("tau"))
         .def("link_poses", &link_poses, nb::arg("tau"))
         .def("joint_positions", &joint_positions, nb::arg("tau"))
-        .def("fit", &link_fit, nb::arg("link"), nb::arg("lo"), nb::arg("hi"))
-        .def("fit_bound", &link_fit_bound, nb::arg("link"), nb::arg("lo"), nb::arg("hi"));
+        .def("fit", &link_fit, nb::arg("link"), nb::arg("lo"), nb::arg("hi"), nb::arg("r") = 0.0)
+        .def("fit_bound", &link_fit_bound, nb::arg("link"), nb::arg("lo"), nb::arg("hi"), nb::arg("r") = 0.0);
     nb::class_<BoxPath>(m, "BoxPath", "A box on a within-step path (box_path.hpp); see RowBoxPath, LinkBoxPath.")
         .def("pose", &path_pose, nb::arg("tau"))
         .def("poses", &path_poses, nb::arg("taus"))
