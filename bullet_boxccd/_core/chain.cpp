@@ -508,37 +508,50 @@ void LinkBoxPath::pose(double tau, double *X_WS) const {
     mat4_mul(X_WC, X_CS_, X_WS);
 }
 
-double LinkBoxPath::fit(double lo, double hi, double *coeffs) const {
-    double X[3][16];
-    const double taus[3] = {lo, 0.5 * (lo + hi), hi};
-    for (int k = 0; k < 3; ++k) pose(taus[k], X[k]);
-    // A box point x is off its fitted place by at most e = b.point(reach);
-    // the fitted 3x3 part M is within `rotation` of a rotation, so the box point y
-    // whose fitted place is x's true one has |y - x| = |M^-1 e| <= e / (1 - rotation).
+LinkBoxPath::Growth LinkBoxPath::growth(double lo, double hi) const {
+    // A box point x is off its fitted place by at most e = b.point(reach); the fitted
+    // 3x3 part M is within `rotation` of a rotation, so the box point y whose fitted
+    // place is x's true one has |y - x| = |M^-1 e| <= e / (1 - rotation).
     const FitBound b = motion_->fit_bound(link_, lo, hi);
     const double quadratic = b.rotation < 1.0 ? b.point(reach_) / (1.0 - b.rotation) : kInf;
     // Too fast for a quadratic (a joint turning radians per piece): the box held still
     // at its middle pose, grown by how far its points get from there, is closer.
     const double still = b.sweep(reach_);
-    if (still < quadratic) {
+    return still < quadratic ? Growth{still, true} : Growth{quadratic, false};
+}
+
+double LinkBoxPath::fit(double lo, double hi, double *coeffs) const {
+    double X[3][16];
+    const double taus[3] = {lo, 0.5 * (lo + hi), hi};
+    const Growth g = growth(lo, hi);
+    for (int k = 0; k < 3; ++k)
+        if (k == 1 || !g.still) pose(taus[k], X[k]);
+    if (g.still)
         interpolate(X[1], X[1], X[1], coeffs);
-        return still;
-    }
-    interpolate(X[0], X[1], X[2], coeffs);
-    return quadratic;
+    else
+        interpolate(X[0], X[1], X[2], coeffs);
+    return g.length;
 }
 
 int LinkBoxPath::pieces(double fit_tolerance) const {
     // The whole step's bound on the third derivative holds on every piece, and the
-    // error shrinks as the cube of the piece's length.
+    // error shrinks as the cube of the piece's length: an upper estimate. Each piece's
+    // own bound is smaller (its lever arms and third derivative are taken at its
+    // middle), so fewer pieces may do: halve while every piece's growth still fits.
     const FitBound b = motion_->fit_bound(link_, 0.0, 1.0);
     const double allowed = fit_tolerance * std::min({half_[0], half_[1], half_[2]});
     const double error = b.point(reach_);
-    for (int n = 1; n < 64; n *= 2) {
-        const double cube = double(n) * n * n;
-        if (b.rotation < cube && error / (cube - b.rotation) <= allowed) return n;
+    int n = 1;
+    while (n < 64 && !(b.rotation < double(n) * n * n && error / (double(n) * n * n - b.rotation) <= allowed)) n *= 2;
+    while (n > 1) {
+        const int half_n = n / 2;
+        bool fits = true;
+        for (int k = 0; k < half_n && fits; ++k)
+            fits = growth(double(k) / half_n, double(k + 1) / half_n).length <= allowed;
+        if (!fits) break;
+        n = half_n;
     }
-    return 64;
+    return n;
 }
 
 }  // namespace boxccd

@@ -154,6 +154,12 @@ class LinkBoxPath : public BoxPath {
     bool finite() const override { return true; }  // checked when built
 
   private:
+    struct Growth {
+        double length;  // how much the half extents grow
+        bool still;     // the box held at the middle pose (else the quadratic fit)
+    };
+    Growth growth(double lo, double hi) const;  // of the better fit on [lo, hi]
+
     const ChainMotion *motion_;
     int link_;
     double X_CS_[16], half_[3];
