@@ -355,7 +355,7 @@ def test_fit_bound_is_exact_for_one_turn():
 
 def test_pieces_keep_growth_within_tolerance():
     """A link box's pieces keep the fit's growth on every piece below fit_tolerance times
-    its smallest half extent (unless 64 pieces are not enough), and halving the pieces
+    its smallest half extent (unless 64 pieces are not enough), and half as many pieces
     would not."""
     rng = np.random.default_rng(11)
     for _ in range(60):
@@ -370,7 +370,7 @@ def test_pieces_keep_growth_within_tolerance():
             assert max(growth) <= FIT_TOLERANCE * half.min() * (1 + 1e-9)
         if n > 1:
             coarse = max(box.fit(k / (n // 2), (k + 1) / (n // 2))[1] for k in range(n // 2))
-            assert coarse > 0.5 * FIT_TOLERANCE * half.min()
+            assert coarse > FIT_TOLERANCE * half.min()
 
 
 # --- first touch on link paths -----------------------------------------------------------------------------
