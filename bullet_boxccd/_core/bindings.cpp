@@ -710,6 +710,9 @@ nb::object as_builtin(nb::object fn, const std::string &name, const std::string 
 
 }  // namespace
 
+// Link paths and the first touch of boxes on any paths: chain_bindings.cpp.
+void bind_chain(nb::module_ &m);
+
 NB_MODULE(_core, m) {
     m.doc() = "Compiled core of bullet_boxccd: the BMS box-box time-of-impact solver.";
     if (_import_array() < 0) throw nb::python_error();
@@ -790,4 +793,5 @@ NB_MODULE(_core, m) {
           nb::arg("tolerances"), nb::arg("penetration") = 0.0, nb::arg("creep") = -1.0);
     m.def("path_contact", &py_path_contact, nb::arg("boxes"), nb::arg("lo"), nb::arg("hi"), nb::arg("tolerances"));
     m.def("as_builtin", &as_builtin, nb::arg("fn"), nb::arg("name"), nb::arg("doc"));
+    bind_chain(m);
 }
