@@ -48,11 +48,21 @@ Multibody velocities are unclamped (``maxJointVelocity=10000``); no damping.
 the impact steps), then the median (and the min) over trials; ``x plain`` is the
 median's ratio to ``plain`` of the same N. Trials run seeds outer, methods inner, so
 a burst of load from elsewhere hits every method alike. For the plugin the per-phase
-seconds of ``ccd.stats.seconds`` (pybullet's step, reading the state, broad phase,
-solver, rewind) are printed per step, and its counters (swept boxes, candidate pairs,
-solver rows, contacts, rewinds, held) summed over the trials.
+seconds of ``ccd.stats.seconds`` (reading the state, broad phase, solver, rewind; a
+step in which nothing is fast is not timed by phase) are printed per step, and its
+counters (swept boxes, candidate pairs, solver rows, contacts, rewinds, held) summed
+over the trials.
 
-Then, tunneling only, ``--extra-seeds`` more seeds (default 100) on the 10-box scene
+First, small worlds (what a reinforcement-learning world steps millions of times):
+1 and 10 resting cubes on the ground (settled), and one cube sliding at 10 m/s on it
+(a fresh world per repeat, 100 steps timed: it is swept at every one of them). Per
+repeat, plain ``stepSimulation``, the N ``getBaseVelocity`` reads alone, and
+``BoxCCD.step()`` are timed in turn (this process's CPU time, mean over a block of
+steps; the min over repeats, as the machine may carry other load); printed: the plugin's overhead over
+plain as a multiple of the reads (target at most 2) and, for the slider, the
+plugin's ratio to plain (target at most 3).
+
+Then the scenes above. Then, tunneling only, ``--extra-seeds`` more seeds (default 100) on the 10-box scene
 for plain, the plugin (both modes), substeps 8 and 16 and native CCD (the pile is off
 the projectiles' paths, so its size does not matter there).
 
@@ -67,9 +77,11 @@ Run
 
 Options: ``--seed`` (default 2024), ``--trials`` (per N up to 100 boxes, default 6;
 larger scenes get a third of them, at least 1), ``--window``, ``--sizes``, ``--csv``.
-``--quick`` runs 2 trials (1 at 1000 boxes) of 64 steps, 20 extra seeds, and leaves
-out substeps 16 (and substeps 8 and plugin exact_time at 1000 boxes).
-The tables are markdown; the first is also written to ``benchmarks/results/plugin.csv``
+``--quick`` runs 2 trials (1 at 1000 boxes) of 64 steps, 20 extra seeds, fewer
+small-world repeats, and leaves out substeps 16 (and substeps 8 and plugin exact_time
+at 1000 boxes). The small-world table is also written to
+``benchmarks/results/plugin_small.csv``.
+The tables are markdown; the scenes' table is also written to ``benchmarks/results/plugin.csv``
 (with the plugin's phases and counters), and every tunneled projectile (N, method,
 seed, projectile, final centre) to ``benchmarks/results/plugin_tunneled.csv``. The
 commit measured is printed (read-only git). The machine may carry other load: read
@@ -82,7 +94,6 @@ from __future__ import annotations
 import argparse
 import csv
 import inspect
-import math
 import os
 import platform
 import statistics
@@ -95,99 +106,24 @@ import pybullet as p
 from tqdm import tqdm
 
 from bullet_boxccd import BoxCCD
+from bullet_boxccd.pybullet_ccd.scenes import (  # the scene, shared with tradeoff.py and `boxccd sweep`
+    DT,
+    HALF,
+    N_PROJ,
+    NATIVE_RADIUS,
+    G,
+    build,
+    shots,
+)
+from bullet_boxccd.pybullet_ccd.scenes import below_ground as _below_ground
+from bullet_boxccd.pybullet_ccd.scenes import centre as _centre
+from bullet_boxccd.pybullet_ccd.scenes import crosses_wall as _crosses_wall
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "demos"))
 from _common import print_table  # noqa: E402  (the demos' markdown table)
 
-DT = 1.0 / 240.0
-HALF = 0.05  # half extent of every dynamic cube
-G = 9.81
-N_PROJ = 4
-WALL_HALF = (0.005, 1.0, 0.75)  # 1 cm thick, wall plane x = 0
-GROUND_HALF = (60.0, 60.0, 0.01)  # 2 cm thick, top at z = 0
 SUBSTEPS = (2, 4, 8, 16)
-NATIVE_RADIUS = 0.5 * HALF
-PHASES = ("step", "state", "broad_phase", "solve", "rewind")
-
-
-# ------------------------------------------------------------------ scene
-def _box(cid, half, pos, mass, maximal):
-    col = p.createCollisionShape(p.GEOM_BOX, halfExtents=half, physicsClientId=cid)
-    b = p.createMultiBody(mass, col, -1, basePosition=pos, useMaximalCoordinates=maximal, physicsClientId=cid)
-    if mass > 0:
-        p.changeDynamics(b, -1, linearDamping=0.0, angularDamping=0.0, maxJointVelocity=10000.0,
-                         physicsClientId=cid)
-    return b
-
-
-def build(n_boxes, maximal, settle_steps=200):
-    """A settled scene; returns (cid, state id, projectile ids, pile ids)."""
-    cid = p.connect(p.DIRECT)
-    p.setGravity(0, 0, -G, physicsClientId=cid)
-    p.setPhysicsEngineParameter(fixedTimeStep=DT, numSubSteps=0, physicsClientId=cid)
-    _box(cid, GROUND_HALF, (0, 0, -GROUND_HALF[2]), 0.0, maximal)
-    _box(cid, WALL_HALF, (0, 0, WALL_HALF[2]), 0.0, maximal)
-    n_pile = n_boxes - N_PROJ
-    layers = min(5, n_pile)
-    per_layer = math.ceil(n_pile / layers)
-    side = math.ceil(math.sqrt(per_layer))
-    pitch = 2 * HALF + 0.002
-    pile = []
-    for i in range(n_pile):
-        layer, r = divmod(i, per_layer)
-        ix, iy = divmod(r, side)
-        pile.append(_box(cid, [HALF] * 3, (-2.0 - ix * pitch, 2.0 + iy * pitch, HALF + layer * (2 * HALF + 1e-4)),
-                         1.0, maximal))
-    for _ in range(settle_steps):
-        p.stepSimulation(physicsClientId=cid)
-    # Projectiles parked high above the far corner (repositioned at every trial).
-    proj = [_box(cid, [HALF] * 3, (40.0 + 2 * k, 40.0, 30.0), 1.0, maximal) for k in range(N_PROJ)]
-    return cid, p.saveState(physicsClientId=cid), proj, pile
-
-
-def shots(seed):
-    """Seeded start poses and velocities of the projectiles: list of (pos, quat, v, w, kind)."""
-    rng = np.random.default_rng(seed)
-    out = []
-    for k in range(N_PROJ):
-        speed = rng.uniform(50.0, 150.0)
-        t_hit = rng.integers(8, 61) * DT + rng.uniform(0, DT)
-        if k < 2:  # at the wall, from the -x side
-            aim = np.array([-WALL_HALF[0] - HALF, rng.uniform(-0.7, 0.7), rng.uniform(0.3, 1.2)])
-            theta, phi = np.radians(rng.uniform(0, 20)), rng.uniform(0, 2 * np.pi)
-            d = np.array([np.cos(theta), np.sin(theta) * np.cos(phi), np.sin(theta) * np.sin(phi)])
-            kind = "wall"
-            if aim[2] - speed * d[2] * t_hit + 0.5 * G * t_hit**2 < 0.3:
-                d[2] = -d[2]  # it would start under the ground: come down onto the wall instead
-        else:  # down at the empty ground
-            aim = np.array([rng.uniform(-4.0, -1.0), rng.uniform(-3.0, -1.0), HALF])
-            theta, phi = np.radians(rng.uniform(0, 30)), rng.uniform(0, 2 * np.pi)
-            d = np.array([np.sin(theta) * np.cos(phi), np.sin(theta) * np.sin(phi), -np.cos(theta)])
-            kind = "ground"
-        v = speed * d
-        pos = aim - v * t_hit + np.array([0, 0, 0.5 * G * t_hit**2])
-        q = rng.normal(size=4)
-        q /= np.linalg.norm(q)
-        w = rng.uniform(-20.0, 20.0, 3)
-        out.append((pos, q, v, w, kind))
-    return out
-
-
-def _centre(cid, b):
-    return np.array(p.getBasePositionAndOrientation(b, physicsClientId=cid)[0])
-
-
-def _crosses_wall(c0, c1):
-    """The centre went from x < 0 to x >= 0 in a step through the wall's face (not over or round it)."""
-    if not (c0[0] < 0.0 <= c1[0]):
-        return False
-    s = -c0[0] / (c1[0] - c0[0])
-    y, z = c0[1:] + s * (c1[1:] - c0[1:])
-    return abs(y) <= WALL_HALF[1] and 0.0 <= z <= 2 * WALL_HALF[2]
-
-
-def _below_ground(c):
-    return c[2] < 0.0 and abs(c[0]) < GROUND_HALF[0] and abs(c[1]) < GROUND_HALF[1]
+PHASES = ("state", "broad_phase", "solve", "rewind")
 
 
 # ------------------------------------------------------------------ runs
@@ -246,6 +182,86 @@ def _code_version():
     return head + (" + uncommitted changes in bullet_boxccd/" if dirty else "")
 
 
+# ------------------------------------------------------------ small worlds
+def _small_world(n, slide):
+    """n settled 0.1 m cubes on a box ground (the first sliding at 10 m/s if slide)."""
+    cid = p.connect(p.DIRECT)
+    p.setGravity(0, 0, -G, physicsClientId=cid)
+    p.setTimeStep(DT, physicsClientId=cid)
+    def box(half, pos, mass):
+        col = p.createCollisionShape(p.GEOM_BOX, halfExtents=half, physicsClientId=cid)
+        return p.createMultiBody(mass, col, basePosition=pos, physicsClientId=cid)
+
+    box((50.0, 50.0, 0.05), (0.0, 0.0, -0.05), 0.0)
+    cubes = [box((HALF,) * 3, (0.3 * (k % 10), 0.3 * (k // 10), HALF), 1.0) for k in range(n)]
+    for _ in range(200):
+        p.stepSimulation(physicsClientId=cid)
+    if slide:
+        p.resetBaseVelocity(cubes[0], [10.0, 0.0, 0.0], [0.0, 0.0, 0.0], physicsClientId=cid)
+    return cid, cubes
+
+
+def _per_call(fn, calls):
+    """us of this process's CPU time per call (other load on the machine does not count)."""
+    t0 = time.process_time()
+    for _ in range(calls):
+        fn()
+    return 1e6 * (time.process_time() - t0) / calls
+
+
+def small_worlds(repeats, csv_path):
+    """The small-world rows: resting 1 and 10, one slider."""
+    rows = []
+    for n in (1, 10):
+        cid, cubes = _small_world(n, False)
+        ccd = BoxCCD(cid)
+        times = {"plain": [], "reads": [], "plugin": []}
+        for _ in range(repeats):  # in turn: a burst of load hits all three alike
+            times["plain"].append(_per_call(lambda: p.stepSimulation(physicsClientId=cid), 1000))
+            times["reads"].append(_per_call(lambda: [p.getBaseVelocity(b, physicsClientId=cid) for b in cubes], 1000))
+            times["plugin"].append(_per_call(ccd.step, 1000))
+        best = {k: min(v) for k, v in times.items()}
+        rows.append(dict(world=f"{n} resting", plain_us=best["plain"], reads_us=best["reads"],
+                         plugin_us=best["plugin"], swept=ccd.stats.swept_boxes, steps=ccd.stats.steps))
+        p.disconnect(cid)
+    times, swept, steps = {"plain": [], "reads": [], "plugin": []}, 0, 0
+    for _ in range(repeats):
+        for method in times:
+            cid, cubes = _small_world(1, True)
+            ccd = BoxCCD(cid) if method == "plugin" else None
+            fn = {"plain": lambda: p.stepSimulation(physicsClientId=cid),
+                  "reads": lambda: (p.stepSimulation(physicsClientId=cid), p.getBaseVelocity(cubes[0],
+                                                                                           physicsClientId=cid)),
+                  "plugin": ccd.step if ccd else None}[method]
+            times[method].append(_per_call(fn, 100))
+            if ccd:
+                swept, steps = swept + ccd.stats.swept_boxes, steps + ccd.stats.steps
+            p.disconnect(cid)
+    best = {k: min(v) for k, v in times.items()}
+    # For the slider "reads" is timed with its step: the read alone is that less plain.
+    rows.append(dict(world="1 sliding at 10 m/s", plain_us=best["plain"], reads_us=best["reads"] - best["plain"],
+                     plugin_us=best["plugin"], swept=swept, steps=steps))
+    table = []
+    for r in rows:
+        r["overhead_in_reads"] = (r["plugin_us"] - r["plain_us"]) / r["reads_us"]
+        r["ratio_to_plain"] = r["plugin_us"] / r["plain_us"]
+        slider = r["world"].startswith("1 sliding")
+        target = ("x plain <= 3: " + ("met" if r["ratio_to_plain"] <= 3.0 else "NOT met")) if slider else \
+            ("overhead <= 2 reads: " + ("met" if r["overhead_in_reads"] <= 2.0 else "NOT met"))
+        table.append((r["world"], f"{r['plain_us']:.1f}", f"{r['reads_us']:.1f}", f"{r['plugin_us']:.1f}",
+                      f"{r['overhead_in_reads']:.2f}", f"{r['ratio_to_plain']:.2f}", f"{r['swept']}/{r['steps']}",
+                      target))
+    print_table(f"small worlds (us of CPU time per step, min over {repeats} repeats; reads: the N getBaseVelocity "
+                "calls)",
+                ("world", "plain", "reads", "plugin", "overhead / reads", "x plain", "swept/steps", "target"),
+                table)
+    os.makedirs(os.path.dirname(os.path.abspath(csv_path)), exist_ok=True)
+    with open(csv_path, "w", newline="") as f:
+        wr = csv.DictWriter(f, fieldnames=list(rows[0]))
+        wr.writeheader()
+        wr.writerows({k: round(v, 3) if isinstance(v, float) else v for k, v in r.items()} for r in rows)
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--quick", action="store_true",
@@ -272,6 +288,8 @@ def main(argv=None):
     print(f"code: {_code_version()}")
     print(f"seed {args.seed}, window {window} steps of 1/240 s (at most 72 from 1000 boxes on), "
           f"{N_PROJ} projectiles per trial")
+
+    small_worlds(3 if args.quick else 9, os.path.join(os.path.dirname(args.csv), "plugin_small.csv"))
 
     n_trials = {n: (trials if n <= 100 else max(1, trials // 3)) for n in args.sizes}
     def quick_skip(n):
@@ -347,11 +365,11 @@ def main(argv=None):
     prow = []
     for n, m, steps, st in phase_rows:
         per = {ph: 1e6 * st.seconds[ph] / steps for ph in PHASES}
-        sweep = sum(per[ph] for ph in PHASES[1:])
+        sweep = sum(per.values())
         prow.append((n, m, steps, *(f"{per[ph]:.0f}" for ph in PHASES), f"{sweep:.0f}", st.swept_boxes,
                      st.candidate_pairs, st.solver_rows, st.contacts, st.rewinds, st.held))
     print_table("plugin phases (us per step, mean over all trials) and counters (totals over all trials)",
-                ("boxes", "method", "steps", "pybullet step", "state", "broad", "solve", "rewind", "sweep total",
+                ("boxes", "method", "steps", "state", "broad", "solve", "rewind", "sweep total",
                  "swept", "pairs", "rows", "contacts", "rewinds", "held"), prow)
 
     if extra:

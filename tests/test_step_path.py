@@ -10,7 +10,7 @@ import pytest
 from oracle import SIGNS, sat_gap
 from scipy.spatial.transform import Rotation
 
-from bullet_boxccd import _core
+from bullet_boxccd import Outcome, _core
 
 DT = 1.0 / 240.0
 FIT_TOLERANCE = 0.05
@@ -123,27 +123,34 @@ def test_first_touch_is_never_late_and_never_missed(seed):
 
 def test_candidate_pairs_match_brute_force():
     """Pairs whose swept bounds meet, at least one fast, each once, with the frame,
-    body, static and self-collision rules, against a brute-force loop."""
+    body, self-collision and collision-filter rules (groups and masks in both of
+    pybullet's modes), against a brute-force loop."""
     rng = np.random.default_rng(3)
-    for _ in range(30):
+    for trial in range(40):
         n_frames = 8
         states = np.array([random_state(rng, 100.0) for _ in range(n_frames)])
         states[:, :3] *= 0.3
         frame_body = rng.integers(0, 5, n_frames).astype(np.int64)
-        flags = (rng.random(n_frames) < 0.3).astype(np.uint8) | (rng.random(n_frames) < 0.5).astype(np.uint8) << 1
+        self_collides = (rng.random(n_frames) < 0.5).astype(np.uint8)
+        group = rng.choice([1, 2, 4, 0], n_frames).astype(np.int64)
+        mask = rng.choice([-1, -3, 1, 0, 6], n_frames).astype(np.int64)
+        mode = trial % 2
         boxes = [(int(rng.integers(0, n_frames)), *random_box(rng)) for _ in range(12)]
         rows = rows_of(states, boxes)
         n_fast = int(rng.integers(0, 6))
         frame = np.array([f for f, _, _ in boxes], dtype=np.int64)
         bounds = _core.swept_bounds(rows)
-        got = {tuple(x) for x in _core.candidate_pairs(bounds, n_fast, frame, frame_body, flags).tolist()}
+        got = {tuple(x) for x in _core.candidate_pairs(bounds, n_fast, frame, frame_body, self_collides, group, mask,
+                                                       mode).tolist()}
         want = set()
         for i in range(n_fast):
             for j in range(len(boxes)):
                 fi, fj = frame[i], frame[j]
                 meet = np.all(bounds[i, :3] <= bounds[j, 3:]) and np.all(bounds[j, :3] <= bounds[i, 3:])
-                if (j == i or (j < n_fast and j < i) or not meet or fi == fj or (flags[fi] & flags[fj] & 1)
-                        or (frame_body[fi] == frame_body[fj] and not flags[fi] & 2)):
+                ab, ba = (group[fi] & mask[fj]) != 0, (group[fj] & mask[fi]) != 0
+                allowed = (ab or ba) if mode == 1 else (ab and ba)
+                if (j == i or (j < n_fast and j < i) or not meet or fi == fj or not allowed
+                        or (frame_body[fi] == frame_body[fj] and not self_collides[fi])):
                     continue
                 want.add((i, j))
         assert got == want
@@ -159,6 +166,18 @@ def test_swept_bounds_contain_the_exact_path():
         assert np.all(V >= b[:3]) and np.all(V <= b[3:])
 
 
+def sweeper_of(boxes, radius, sweep_reach, n_frames, frame_body=None, self_collides=None, group=None, mask=None,
+               mode=1):
+    frame = np.array([f for f, _, _ in boxes], dtype=np.int64)
+    X_CS = np.array([X for _, X, _ in boxes])
+    half = np.array([h for _, _, h in boxes])
+    ones = np.ones(n_frames, dtype=np.int64)
+    return _core.Sweeper(frame, np.asarray(radius, dtype=float), X_CS, half, np.asarray(sweep_reach, dtype=float),
+                         np.arange(n_frames, dtype=np.int64) if frame_body is None else frame_body,
+                         np.zeros(n_frames, dtype=np.uint8) if self_collides is None else self_collides,
+                         ones if group is None else group, -ones if mask is None else mask, mode)
+
+
 def test_fast_boxes_and_slack():
     """A box is fast when (|v| + |w| r) dt exceeds its threshold; the slack is the
     largest reach of the others; a non-finite state is left alone."""
@@ -167,9 +186,135 @@ def test_fast_boxes_and_slack():
     states[0, 7] = 10.0  # 10 m/s: reach 10 dt
     states[1, 12] = 100.0  # 100 rad/s at r = 0.2: reach 20 dt
     states[2, 7] = np.nan
-    fast, slack = _core.fast_boxes(states, DT, np.arange(3, dtype=np.int64), np.full(3, 0.2),
-                                   np.array([15 * DT, 15 * DT, 0.0]))
-    assert fast.tolist() == [1] and slack == pytest.approx(10 * DT)
+    boxes = [(f, np.eye(4), np.full(3, 0.1)) for f in range(3)]
+    sweeper = sweeper_of(boxes, np.full(3, 0.2), [15 * DT, 15 * DT, 0.0], 3)
+    sweeper.state[:] = states
+    fast, slack, frames = sweeper.fast(DT)
+    assert fast == [1] and frames == [1] and slack == pytest.approx(10 * DT)
+    # pybullet's velocity reads written first: frame 1 stops, frame 0 speeds up to 20 m/s.
+    fast, _, frames = sweeper.fast(DT, [0, 1], [((20.0, 0.0, 0.0), (0.0, 0.0, 0.0)), ((0.0,) * 3, (0.0,) * 3)])
+    assert fast == [0] and frames == [0] and sweeper.state[0, 7] == 20.0 and sweeper.state[1, 12] == 0.0
+    sweeper.state[0, 7] = 0.0
+    assert sweeper.fast(DT) is None
+
+
+@pytest.mark.parametrize("all_others", [False, True])
+def test_sweeper_touches_is_its_parts(all_others):
+    """The sweeper's one call gives what its parts give: path rows of the boxes (the
+    fast ones first, then the given others or every other box), candidate pairs, and
+    first touches (each part is checked against its reference above)."""
+    rng = np.random.default_rng(11)
+    tol = _core.Tolerances()
+    touched = 0
+    for trial in range(30):
+        n_frames = 6
+        states = np.array([random_state(rng, 60.0) for _ in range(n_frames)])
+        states[:, :3] *= 0.15
+        boxes = [(int(rng.integers(0, n_frames)), *random_box(rng)) for _ in range(9)]
+        frame_body = rng.integers(0, 4, n_frames).astype(np.int64)
+        group = rng.choice([1, 2, 3], n_frames).astype(np.int64)
+        mask = rng.choice([-1, 1, 2], n_frames).astype(np.int64)
+        self_collides = (rng.random(n_frames) < 0.5).astype(np.uint8)
+        sw = sweeper_of(boxes, np.full(9, 0.3), np.zeros(9), n_frames, frame_body, self_collides, group, mask,
+                        trial % 2)
+        order = rng.permutation(9).astype(np.int64)
+        n_fast = int(rng.integers(1, 5))
+        given = order[:n_fast] if all_others else order[:n_fast + int(rng.integers(0, 9 - n_fast))]
+        sw.state[:] = states
+        outcomes = np.zeros(len(Outcome), dtype=np.int64)
+        n_pairs, solves, found = sw.touches(DT, given.tolist(), n_fast, all_others, FIT_TOLERANCE, tol, 0.0, 0.02,
+                                            outcomes)
+        want_boxes = np.concatenate([given, np.setdiff1d(np.arange(9), given)]) if all_others else given
+        rows = rows_of(states, boxes)[want_boxes]
+        frame = np.array([f for f, _, _ in boxes], dtype=np.int64)[want_boxes]
+        want_pairs = _core.candidate_pairs(_core.swept_bounds(rows), n_fast, frame, frame_body, self_collides, group,
+                                           mask, trial % 2)
+        want_tau, want_states, want_solves = _core.first_touches(rows, want_pairs, FIT_TOLERANCE, tol, 0.0, 0.02,
+                                                                 states=True)
+        assert n_pairs == len(want_pairs) and solves == want_solves
+        # Every candidate pair's outcome is counted; a touch is never counted as SEPARATED.
+        assert outcomes.tolist() == np.bincount(want_states, minlength=len(Outcome)).tolist()
+        assert np.array_equal(np.isin(want_states, [Outcome.SEPARATED, Outcome.NON_FINITE]), np.isnan(want_tau))
+        hit = ~np.isnan(want_tau)
+        if not hit.any():
+            assert found is None
+            continue
+        touched += 1
+        got_boxes, got_rows, pairs, hits = found
+        assert got_boxes.tolist() == want_boxes.tolist()
+        np.testing.assert_array_equal(got_rows, rows)
+        np.testing.assert_array_equal(pairs, want_pairs)
+        assert hits == [(i, j, t) for (i, j), t in zip(want_pairs[hit].tolist(), want_tau[hit].tolist())]
+    assert touched >= 5
+
+
+def reference_first_depth(boxes, tau_from, target):
+    """first_depth without skipping: every look-ahead sample, then bisection."""
+    depth = lambda t: _core.path_separation(boxes, t)[0]  # noqa: E731
+    lo, hi = tau_from, None
+    for k in range(48, -1, -1):
+        t = tau_from + (1.0 - tau_from) * 2.0 ** -k
+        if depth(t) >= target:
+            hi = t
+            break
+        lo = t
+    if hi is None:
+        return np.nan
+    for _ in range(200):
+        mid = 0.5 * (lo + hi)
+        if hi - lo <= 1e-15 or mid <= lo or mid >= hi:
+            break
+        if depth(mid) >= target:
+            hi = mid
+        else:
+            lo = mid
+    return hi
+
+
+def test_first_depth_skips_only_samples_that_cannot_reach_the_target():
+    """The look-ahead skips samples nearer to the start than the boxes' travel allows
+    the depth to grow; the answer is the one every sample would give, and the depth
+    reached never grows faster than that travel (the bound the skip relies on)."""
+    rng = np.random.default_rng(17)
+    found = 0
+    for _ in range(150):
+        states = np.array([random_state(rng, 80.0) for _ in range(2)])
+        states[:, :3] *= 0.1
+        boxes = rows_of(states, [(0, *random_box(rng)), (1, *random_box(rng))])
+        tau_from = float(rng.choice([0.0, rng.uniform(0, 0.9)]))
+        target = max(_core.path_separation(boxes, tau_from)[0], 0.0) + rng.uniform(1e-4, 0.02)
+        got, want = _core.first_depth(boxes, tau_from, target), reference_first_depth(boxes, tau_from, target)
+        assert (np.isnan(got) and np.isnan(want)) or got == want
+        found += not np.isnan(got)
+        col = {k: slice(*v) for k, v in _core.layouts()["path_row"].items()}
+        reach = [np.linalg.norm(b[col["box_in_frame"]].reshape(4, 4)[:3, 3]) + np.linalg.norm(b[col["half_extents"]])
+                 for b in boxes]
+        travel = sum(np.linalg.norm(b[col["displacement"]]) + abs(b[col["angle"]][0]) * r for b, r in zip(boxes, reach))
+        taus = np.linspace(0, 1, 101)
+        depth = np.maximum([_core.path_separation(boxes, t)[0] for t in taus], 0.0)
+        assert np.all(np.abs(np.diff(depth)) <= travel * np.diff(taus) + 1e-12)
+    assert found >= 20
+
+
+def test_reads_go_into_the_frame_state_rows():
+    """pybullet's read tuples go into the named columns of the sweeper's rows (a view
+    that stays valid); bad reads raise."""
+    sweeper = sweeper_of([(f, np.eye(4), np.full(3, 0.1)) for f in range(3)], np.ones(3), np.ones(3), 3)
+    rows = sweeper.state
+    assert rows[:, :7].tolist() == [[0, 0, 0, 0, 0, 0, 1]] * 3  # at the origin, unturned
+    sweeper.put_poses([2, 0], [((1.0, 2.0, 3.0), (0.0, 0.0, 0.0, 1.0)), ((4.0, 5.0, 6.0), (1.0, 0.0, 0.0, 0.0))])
+    assert rows[2, :7].tolist() == [1, 2, 3, 0, 0, 0, 1] and rows[0, :7].tolist() == [4, 5, 6, 1, 0, 0, 0]
+    sweeper.put_twists([1, 0], [((1.0, 0.0, 0.0), (0.0, 0.0, 1.0)), ((0.0, 2.0, 0.0), (3.0, 0.0, 0.0))])
+    assert rows[1, 7:].tolist() == [1, 0, 0, 0, 0, 1] and rows[0, 7:].tolist() == [0, 2, 0, 3, 0, 0]
+    del sweeper  # the view keeps the rows alive
+    assert rows[1, 12] == 1.0
+    sweeper = sweeper_of([(0, np.eye(4), np.full(3, 0.1))], np.ones(1), np.ones(1), 1)
+    with pytest.raises(ValueError, match="equal length"):
+        sweeper.put_poses([0, 0], [((1.0, 2.0, 3.0), (0.0, 0.0, 0.0, 1.0))])
+    with pytest.raises(IndexError, match="frame index 5"):
+        sweeper.put_poses([5], [((1.0, 2.0, 3.0), (0.0, 0.0, 0.0, 1.0))])
+    with pytest.raises(IndexError, match="box index 3"):
+        sweeper.touches(DT, [3], 1, True, FIT_TOLERANCE, _core.Tolerances(), 0.0, 0.02)
 
 
 def test_bad_indices_raise_index_error():

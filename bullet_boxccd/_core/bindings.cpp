@@ -5,6 +5,7 @@
 #include <nanobind/ndarray.h>
 #include <nanobind/stl/string.h>
 #include <nanobind/stl/array.h>
+#include <nanobind/stl/optional.h>
 #include <nanobind/stl/tuple.h>
 
 // numpy's own C API makes the two small arrays of a contact: an array made
@@ -13,6 +14,9 @@
 #define NPY_NO_DEPRECATED_API NPY_1_7_API_VERSION
 #include <numpy/arrayobject.h>
 
+#include <algorithm>
+#include <initializer_list>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -312,6 +316,9 @@ nb::tuple planes(const BoxData &a, const MotionData &m_a, const BoxData &b, cons
 using PathBoxes = In<2, kPathBoxSize>;
 using PathRows = In<-1, kPathBoxSize>;
 using States = In<-1, kFrameStateSize>;
+using Bytes = nb::ndarray<const uint8_t, nb::shape<-1>, nb::c_contig, nb::device::cpu>;
+// Counts by Outcome (int64, one per outcome), added to in place.
+using Counts = nb::ndarray<int64_t, nb::shape<kOutcomes>, nb::c_contig, nb::device::cpu>;
 template <long... Shape>
 using Index = nb::ndarray<const int64_t, nb::shape<Shape...>, nb::c_contig, nb::device::cpu>;
 
@@ -334,43 +341,36 @@ Out<double, -1, 6> py_swept_bounds(const PathRows &boxes) {
     return Out<double, -1, 6>(out, {n, 6}, owner);
 }
 
+// (depth, axis (3,)) of path_separation at tau.
+nb::tuple py_path_separation(const PathBoxes &boxes, double tau) {
+    auto [out, owner] = new_buffer<double>(3);
+    const double depth = path_separation(boxes.data(), boxes.data() + kPathBoxSize, tau, out);
+    return nb::make_tuple(depth, Out<double, 3>(out, {3}, owner));
+}
+
 double py_first_depth(const PathBoxes &boxes, double tau_from, double target) {
     return first_depth(boxes.data(), boxes.data() + kPathBoxSize, tau_from, target);
 }
 
-// (indices of the boxes whose reach exceeds sweep_reach, the largest reach of the others).
-nb::tuple py_fast_boxes(const States &state, double dt, const Index<-1> &box_frame, const In<-1> &radius,
-                        const In<-1> &sweep_reach) {
-    const size_t n = box_frame.shape(0);
-    if (radius.shape(0) != n || sweep_reach.shape(0) != n) throw nb::value_error("box tables differ in length");
-    auto [out, owner] = new_buffer<int64_t>(n);
-    size_t k = 0;
-    double slack = 0.0;
+// Path rows of `n` boxes (indices into tables of n_all boxes) into out.
+void fill_path_rows(const States &state, double dt, const int64_t *boxes, size_t n, size_t n_all,
+                    const int64_t *box_frame, const double *X_CS, const double *half, double *out) {
     for (size_t i = 0; i < n; ++i) {
-        const int64_t f = box_frame.data()[i];
+        const int64_t b = boxes[i];
+        check_index(b, n_all, "box");
+        const int64_t f = box_frame[b];
         check_index(f, state.shape(0), "frame");
-        const double r = step_reach(state.data() + kFrameStateSize * f, dt, radius.data()[i]);
-        if (!std::isfinite(r)) continue;  // a broken body (pybullet's NaN) is left to pybullet
-        if (r > sweep_reach.data()[i]) out[k++] = int64_t(i);
-        else slack = std::fmax(slack, r);
+        path_row(state.data() + kFrameStateSize * f, dt, X_CS + 16 * b, half + 3 * b, out + kPathBoxSize * i);
     }
-    return nb::make_tuple(Out<int64_t, -1>(out, {k}, owner), slack);
 }
 
 Out<double, -1, kPathBoxSize> py_path_rows(const States &state, double dt, const Index<-1> &boxes,
                                           const Index<-1> &box_frame, const In<-1, 4, 4> &X_CS,
                                           const In<-1, 3> &half) {
-    const size_t n = boxes.shape(0), nb_ = box_frame.shape(0);
-    if (X_CS.shape(0) != nb_ || half.shape(0) != nb_) throw nb::value_error("box tables differ in length");
+    const size_t n = boxes.shape(0), n_all = box_frame.shape(0);
+    if (X_CS.shape(0) != n_all || half.shape(0) != n_all) throw nb::value_error("box tables differ in length");
     auto [out, owner] = new_buffer<double>(kPathBoxSize * n);
-    for (size_t i = 0; i < n; ++i) {
-        const int64_t b = boxes.data()[i];
-        check_index(b, nb_, "box");
-        const int64_t f = box_frame.data()[b];
-        check_index(f, state.shape(0), "frame");
-        path_row(state.data() + kFrameStateSize * f, dt, X_CS.data() + 16 * b, half.data() + 3 * b,
-                 out + kPathBoxSize * i);
-    }
+    fill_path_rows(state, dt, boxes.data(), n, n_all, box_frame.data(), X_CS.data(), half.data(), out);
     return Out<double, -1, kPathBoxSize>(out, {n, size_t(kPathBoxSize)}, owner);
 }
 
@@ -386,17 +386,22 @@ Out<double, -1, 7> py_frame_poses(const States &state, double dt, const Index<-1
 }
 
 Out<int64_t, -1, 2> py_candidate_pairs(const In<-1, 6> &bounds, int64_t n_fast, const Index<-1> &frame,
-                                       const Index<-1> &frame_body, const nb::ndarray<const uint8_t, nb::shape<-1>,
-                                       nb::c_contig, nb::device::cpu> &frame_flags) {
+                                       const Index<-1> &frame_body,
+                                       const Bytes &self_collides,
+                                       const Index<-1> &group, const Index<-1> &mask, int filter_mode) {
     const int64_t n = int64_t(bounds.shape(0));
     if (frame.shape(0) != size_t(n) || n_fast < 0 || n_fast > n)
         throw nb::value_error(("candidate_pairs: " + std::to_string(n) + " bounds, " + std::to_string(frame.shape(0)) +
                                " frames and n_fast = " + std::to_string(n_fast) +
                                "; expected one frame per box and 0 <= n_fast <= boxes")
                                   .c_str());
-    if (frame_flags.shape(0) != frame_body.shape(0)) throw nb::value_error("frame tables differ in length");
-    for (int64_t i = 0; i < n; ++i) check_index(frame.data()[i], frame_body.shape(0), "frame");
-    const auto pairs = candidate_pairs(bounds.data(), n, n_fast, frame.data(), frame_body.data(), frame_flags.data());
+    const size_t nf = frame_body.shape(0);
+    if (self_collides.shape(0) != nf || group.shape(0) != nf || mask.shape(0) != nf)
+        throw nb::value_error("frame tables differ in length");
+    for (int64_t i = 0; i < n; ++i) check_index(frame.data()[i], nf, "frame");
+    const FrameFilter filter{group.data(), mask.data(), filter_mode};
+    const auto pairs =
+        candidate_pairs(bounds.data(), n, n_fast, frame.data(), frame_body.data(), self_collides.data(), filter);
     auto [out, owner] = new_buffer<int64_t>(2 * pairs.size());
     for (size_t k = 0; k < pairs.size(); ++k) {
         out[2 * k] = pairs[k].first;
@@ -405,28 +410,328 @@ Out<int64_t, -1, 2> py_candidate_pairs(const In<-1, 6> &bounds, int64_t n_fast, 
     return Out<int64_t, -1, 2>(out, {pairs.size(), 2}, owner);
 }
 
-// (first touch of each pair, NaN where none; solver calls made), or with
-// `states` (first touch, each pair's Outcome as int8, solver calls).
+// Path rows of boxes on kinematic frames: frame f went from poses0[f] to poses1[f] (7 each).
+Out<double, -1, kPathBoxSize> py_path_rows_between(const In<-1, 7> &poses0, const In<-1, 7> &poses1,
+                                                   const Index<-1> &boxes, const Index<-1> &box_frame,
+                                                   const In<-1, 4, 4> &X_CS, const In<-1, 3> &half) {
+    const size_t n = boxes.shape(0), nb_ = box_frame.shape(0);
+    if (X_CS.shape(0) != nb_ || half.shape(0) != nb_) throw nb::value_error("box tables differ in length");
+    if (poses0.shape(0) != poses1.shape(0)) throw nb::value_error("poses0 and poses1 differ in length");
+    auto [out, owner] = new_buffer<double>(kPathBoxSize * n);
+    for (size_t i = 0; i < n; ++i) {
+        const int64_t b = boxes.data()[i];
+        check_index(b, nb_, "box");
+        const int64_t f = box_frame.data()[b];
+        check_index(f, poses0.shape(0), "frame");
+        path_row_between(poses0.data() + 7 * f, poses1.data() + 7 * f, X_CS.data() + 16 * b, half.data() + 3 * b,
+                         out + kPathBoxSize * i);
+    }
+    return Out<double, -1, kPathBoxSize>(out, {n, size_t(kPathBoxSize)}, owner);
+}
+
+// (n, 4, 4) poses of path rows' boxes at taus (one each).
+Out<double, -1, 4, 4> py_row_poses(const PathRows &rows, const In<-1> &taus) {
+    const size_t n = rows.shape(0);
+    if (taus.shape(0) != n) throw nb::value_error("rows and taus differ in length");
+    auto [out, owner] = new_buffer<double>(16 * n);
+    for (size_t i = 0; i < n; ++i) row_pose(rows.data() + kPathBoxSize * i, taus.data()[i], out + 16 * i);
+    return Out<double, -1, 4, 4>(out, {n, 4, 4}, owner);
+}
+
+// Path rows restricted to the window [lo, hi] of the step.
+Out<double, -1, kPathBoxSize> py_window_rows(const PathRows &rows, double lo, double hi) {
+    const size_t n = rows.shape(0);
+    auto [out, owner] = new_buffer<double>(kPathBoxSize * n);
+    for (size_t i = 0; i < n; ++i) window_row(rows.data() + kPathBoxSize * i, lo, hi, out + kPathBoxSize * i);
+    return Out<double, -1, kPathBoxSize>(out, {n, size_t(kPathBoxSize)}, owner);
+}
+
+// A body for resolve_collision from a (34,) row: com (3), inv_m, inv_I (9), I (9), v (3), w (3).
+CollisionBody collision_body(const double *x) {
+    CollisionBody c;
+    std::copy(x, x + 3, c.com);
+    c.inv_m = x[3];
+    std::copy(x + 4, x + 13, c.inv_I);
+    std::copy(x + 13, x + 22, c.I);
+    std::copy(x + 22, x + 25, c.v);
+    std::copy(x + 25, x + 28, c.w);
+    return c;
+}
+
+// (approached, (2, 6) new v and w of a and b); bodies (2, 28) as in collision_body.
+nb::tuple py_resolve_collision(const In<2, 28> &bodies, const In<-1, 3> &points, const In<3> &normal, double e,
+                               double mu, int sweeps) {
+    CollisionBody a = collision_body(bodies.data()), b = collision_body(bodies.data() + 28);
+    const bool approached =
+        resolve_collision(a, b, points.data(), int(points.shape(0)), normal.data(), e, mu, sweeps);
+    auto [out, owner] = new_buffer<double>(12);
+    for (int i = 0; i < 3; ++i) {
+        out[i] = a.v[i];
+        out[3 + i] = a.w[i];
+        out[6 + i] = b.v[i];
+        out[9 + i] = b.w[i];
+    }
+    return nb::make_tuple(approached, Out<double, 2, 6>(out, {2, 6}, owner));
+}
+
+// pybullet's reads as they come (tuples of tuples of floats), written into frame-state
+// rows without numpy on the way: for a small world, the conversion costs more than the
+// reads. `frames` is a list of frame indices, `values` one read per frame, each a tuple
+// of `parts` tuples of the given sizes, written from column `column` on.
+using MutStates = nb::ndarray<double, nb::shape<-1, kFrameStateSize>, nb::c_contig, nb::device::cpu>;
+
+void put_reads(MutStates &state, nb::handle frames, nb::handle values, int column, std::initializer_list<int> parts) {
+    PyObject *fl = frames.ptr(), *vl = values.ptr();
+    if (!PyList_Check(fl) || !PyList_Check(vl) || PyList_GET_SIZE(fl) != PyList_GET_SIZE(vl))
+        throw nb::value_error("expected two lists of equal length: frame indices and their reads");
+    for (Py_ssize_t i = 0; i < PyList_GET_SIZE(fl); ++i) {
+        const long long f = PyLong_AsLongLong(PyList_GET_ITEM(fl, i));
+        if (f == -1 && PyErr_Occurred()) throw nb::python_error();
+        check_index(f, state.shape(0), "frame");
+        double *row = state.data() + kFrameStateSize * f + column;
+        PyObject *read = PyList_GET_ITEM(vl, i);
+        if (!PyTuple_Check(read) || PyTuple_GET_SIZE(read) < Py_ssize_t(parts.size()))
+            throw nb::value_error("a read is not a tuple of its parts");
+        int k = 0, c = 0;
+        for (const int size : parts) {
+            PyObject *part = PyTuple_GET_ITEM(read, k++);
+            if (!PyTuple_Check(part) || PyTuple_GET_SIZE(part) != size) throw nb::value_error("a read's part has the wrong size");
+            for (int j = 0; j < size; ++j) {
+                const double x = PyFloat_AsDouble(PyTuple_GET_ITEM(part, j));
+                if (x == -1.0 && PyErr_Occurred()) throw nb::python_error();
+                row[c++] = x;
+            }
+        }
+    }
+}
+
+// Column layouts (name -> (start, stop)) of the frame state and the path row.
+nb::dict layouts() {
+    using fs = FrameState;
+    using pr = PathRow;
+    nb::dict state, row, out;
+    state["position"] = nb::make_tuple(fs::kPosition, fs::kOrientation);
+    state["orientation"] = nb::make_tuple(fs::kOrientation, fs::kVelocity);
+    state["velocity"] = nb::make_tuple(fs::kVelocity, fs::kAngularVelocity);
+    state["angular_velocity"] = nb::make_tuple(fs::kAngularVelocity, fs::kSize);
+    row["pose_after"] = nb::make_tuple(pr::kPoseAfter, pr::kDisplacement);
+    row["displacement"] = nb::make_tuple(pr::kDisplacement, pr::kAxis);
+    row["axis"] = nb::make_tuple(pr::kAxis, pr::kAngle);
+    row["angle"] = nb::make_tuple(pr::kAngle, pr::kBoxInFrame);
+    row["box_in_frame"] = nb::make_tuple(pr::kBoxInFrame, pr::kHalfExtents);
+    row["half_extents"] = nb::make_tuple(pr::kHalfExtents, pr::kSize);
+    out["frame_state"] = state;
+    out["path_row"] = row;
+    return out;
+}
+
+// The first touch of each of n pairs (of rows) into out, NaN where none; returns the
+// solver calls made. With creep >= 0, a pair touching at the start that does not
+// press in (presses_in) counts as none. Each pair's Outcome goes to state (if not
+// null), and is counted in counts[outcome] (if not null).
+long first_touches(const double *rows, const int64_t *pairs, size_t n, double fit_tolerance, const Tolerances &tol,
+                   double penetration, double creep, double *out, int8_t *state, int64_t *counts) {
+    long solves = 0;
+    nb::gil_scoped_release release;
+    for (size_t k = 0; k < n; ++k) {
+        const double *a = rows + kPathBoxSize * pairs[2 * k], *b = rows + kPathBoxSize * pairs[2 * k + 1];
+        const double depth0 = path_depth(a, b, 0.0);
+        Outcome o;
+        out[k] = first_touch(a, b, fit_tolerance, tol, solves, o, depth0);
+        if (out[k] == 0.0 && creep >= 0.0 && !presses_in(a, b, penetration, creep, depth0)) {
+            out[k] = std::numeric_limits<double>::quiet_NaN();
+            o = Outcome::Separated;
+        }
+        if (state) state[k] = static_cast<int8_t>(o);
+        if (counts) ++counts[static_cast<int>(o)];
+    }
+    return solves;
+}
+
+// (first touch of each pair, NaN where none; solver calls made), or with `states`
+// (first touch, each pair's Outcome as int8, solver calls): see first_touches.
 nb::tuple py_first_touches(const PathRows &rows, const Index<-1, 2> &pairs, double fit_tolerance,
-                           const Tolerances &tol, bool states) {
+                           const Tolerances &tol, double penetration, double creep, bool states) {
     validate(tol);
     const size_t n = pairs.shape(0);
     for (size_t k = 0; k < 2 * n; ++k) check_index(pairs.data()[k], rows.shape(0), "row");
     auto [out, owner] = new_buffer<double>(n);
     auto [state, state_owner] = new_buffer<int8_t>(n);
-    long solves = 0;
-    {
-        nb::gil_scoped_release release;
-        for (size_t k = 0; k < n; ++k) {
-            Outcome o;
-            out[k] = first_touch(rows.data() + kPathBoxSize * pairs.data()[2 * k],
-                                 rows.data() + kPathBoxSize * pairs.data()[2 * k + 1], fit_tolerance, tol, solves, o);
-            state[k] = static_cast<int8_t>(o);
-        }
-    }
+    const long solves =
+        first_touches(rows.data(), pairs.data(), n, fit_tolerance, tol, penetration, creep, out, state, nullptr);
     if (!states) return nb::make_tuple(Out<double, -1>(out, {n}, owner), solves);
     return nb::make_tuple(Out<double, -1>(out, {n}, owner), Out<int8_t, -1>(state, {n}, state_owner), solves);
 }
+
+// An array's elements, copied.
+template <class A>
+auto copy(const A &a) {
+    using T = std::remove_const_t<std::remove_pointer_t<decltype(a.data())>>;
+    return std::vector<T>(a.data(), a.data() + a.size());
+}
+
+// The box tables of a world, held across its steps, so that a step's sweep passes the
+// frame state only: the fast boxes, then the first touches of the fast boxes with
+// their partners (path rows, swept bounds, pybullet's filters, solves) in one call.
+class Sweeper {
+  public:
+    Sweeper(const Index<-1> &box_frame, const In<-1> &radius, const In<-1, 4, 4> &X_CS, const In<-1, 3> &half,
+            const In<-1> &sweep_reach, const Index<-1> &frame_body, const Bytes &self_collides,
+            const Index<-1> &group, const Index<-1> &mask, int filter_mode)
+        : n_(box_frame.shape(0)), box_frame_(copy(box_frame)), radius_(copy(radius)), X_CS_(copy(X_CS)),
+          half_(copy(half)), sweep_reach_(copy(sweep_reach)), frame_body_(copy(frame_body)),
+          self_collides_(copy(self_collides)), group_(copy(group)), mask_(copy(mask)), mode_(filter_mode),
+          state_(kFrameStateSize * frame_body.shape(0), 0.0) {
+        const size_t nf = frame_body.shape(0);
+        if (radius.shape(0) != n_ || X_CS.shape(0) != n_ || half.shape(0) != n_ || sweep_reach.shape(0) != n_)
+            throw nb::value_error("box tables differ in length");
+        if (self_collides.shape(0) != nf || group.shape(0) != nf || mask.shape(0) != nf)
+            throw nb::value_error("frame tables differ in length");
+        for (const int64_t f : box_frame_) check_index(f, nf, "frame");
+        for (size_t f = 0; f < nf; ++f) state_[kFrameStateSize * f + FrameState::kOrientation + 3] = 1.0;
+    }
+
+    // The frames' state, a numpy view of the sweeper's own rows (F, 13): the calls below
+    // read it without converting an array.
+    Out<double, -1, kFrameStateSize> state(nb::handle self) {
+        return Out<double, -1, kFrameStateSize>(state_.data(), {state_.size() / kFrameStateSize,
+                                                                size_t(kFrameStateSize)}, self);
+    }
+
+    // pybullet's reads of `frames` (a list of frame indices) as they come, into the state.
+    void put_twists(nb::handle frames, nb::handle twists) {
+        put_reads(frames, twists, FrameState::kVelocity, {3, 3});
+    }
+    void put_poses(nb::handle frames, nb::handle poses) { put_reads(frames, poses, FrameState::kPosition, {3, 4}); }
+
+    // The fast boxes of the state, with `frames` and `twists` (velocity reads) put first:
+    // None if none is fast, else ([box], the largest reach of the others, [their frames]).
+    nb::object fast(double dt, nb::handle frames, nb::handle twists) {
+        if (!frames.is_none()) put_twists(frames, twists);
+        std::vector<int64_t> boxes, fast_frames;
+        double slack = 0.0;
+        for (size_t i = 0; i < n_; ++i) {
+            const int64_t f = box_frame_[i];
+            const double r = step_reach(state_.data() + kFrameStateSize * f, dt, radius_[i]);
+            if (!std::isfinite(r)) continue;  // a broken body (pybullet's NaN) is left to pybullet
+            if (r > sweep_reach_[i]) {
+                boxes.push_back(int64_t(i));
+                fast_frames.push_back(f);
+            } else {
+                slack = std::fmax(slack, r);
+            }
+        }
+        if (boxes.empty()) return nb::none();
+        std::sort(fast_frames.begin(), fast_frames.end());
+        fast_frames.erase(std::unique(fast_frames.begin(), fast_frames.end()), fast_frames.end());
+        return nb::make_tuple(to_list(boxes), slack, to_list(fast_frames));
+    }
+
+    // (path rows, swept bounds) of the boxes (a list of box indices).
+    nb::tuple rows(double dt, nb::handle boxes) const {
+        const std::vector<int64_t> ids = from_list(boxes, n_, "box");
+        const size_t n = ids.size();
+        auto [rows, owner] = new_buffer<double>(kPathBoxSize * n);
+        auto [bounds, bounds_owner] = new_buffer<double>(6 * n);
+        path_rows_and_bounds(dt, ids.data(), n, rows, bounds);
+        return nb::make_tuple(Out<double, -1, kPathBoxSize>(rows, {n, size_t(kPathBoxSize)}, owner),
+                              Out<double, -1, 6>(bounds, {n, 6}, bounds_owner));
+    }
+
+    // The first n_moving of `boxes` (a list of box indices) against each other and the
+    // rest of them (with all_others: against every other box of the world, appended to
+    // `boxes`): (number of candidate pairs, solver calls, None if no pair touches, else
+    // (boxes, path rows, candidate pairs of rows, [(row a, row b, first touch)] of the
+    // pairs that touch)). Every candidate pair's Outcome is counted into `outcomes`, if given.
+    nb::tuple touches(double dt, nb::handle boxes, int64_t n_moving, bool all_others, double fit_tolerance,
+                      const Tolerances &tol, double penetration, double creep, std::optional<Counts> outcomes) const {
+        std::vector<int64_t> ids = from_list(boxes, n_, "box");
+        if (n_moving < 0 || size_t(n_moving) > ids.size()) throw nb::value_error("touches: n_moving out of range");
+        if (all_others) {
+            std::vector<uint8_t> in(n_, 0);
+            for (const int64_t b : ids) in[b] = 1;
+            for (size_t b = 0; b < n_; ++b)
+                if (!in[b]) ids.push_back(int64_t(b));
+        }
+        const size_t n = ids.size();
+        auto [rows, rows_owner] = new_buffer<double>(kPathBoxSize * n);
+        std::vector<double> bounds(6 * n);
+        path_rows_and_bounds(dt, ids.data(), n, rows, bounds.data());
+        std::vector<int64_t> frame(n);
+        for (size_t i = 0; i < n; ++i) frame[i] = box_frame_[ids[i]];
+        const FrameFilter filter{group_.data(), mask_.data(), mode_};
+        const auto pairs = candidate_pairs(bounds.data(), int64_t(n), n_moving, frame.data(), frame_body_.data(),
+                                           self_collides_.data(), filter);
+        const size_t m = pairs.size();
+        auto [pair_out, pairs_owner] = new_buffer<int64_t>(2 * m);
+        for (size_t k = 0; k < m; ++k) {
+            pair_out[2 * k] = pairs[k].first;
+            pair_out[2 * k + 1] = pairs[k].second;
+        }
+        std::vector<double> tau(m);
+        const long solves = first_touches(rows, pair_out, m, fit_tolerance, tol, penetration, creep, tau.data(),
+                                          nullptr, outcomes ? outcomes->data() : nullptr);
+        nb::list hits;
+        for (size_t k = 0; k < m; ++k)
+            if (!std::isnan(tau[k])) hits.append(nb::make_tuple(pairs[k].first, pairs[k].second, tau[k]));
+        if (hits.size() == 0) return nb::make_tuple(m, solves, nb::none());  // the owners free the buffers
+        auto [box_out, boxes_owner] = new_buffer<int64_t>(n);
+        std::copy(ids.begin(), ids.end(), box_out);
+        return nb::make_tuple(m, solves,
+                              nb::make_tuple(Out<int64_t, -1>(box_out, {n}, boxes_owner),
+                                             Out<double, -1, kPathBoxSize>(rows, {n, size_t(kPathBoxSize)}, rows_owner),
+                                             Out<int64_t, -1, 2>(pair_out, {m, 2}, pairs_owner), hits));
+    }
+
+  private:
+    void path_rows_and_bounds(double dt, const int64_t *boxes, size_t n, double *rows, double *bounds) const {
+        for (size_t i = 0; i < n; ++i) {
+            const int64_t b = boxes[i];
+            path_row(state_.data() + kFrameStateSize * box_frame_[b], dt, X_CS_.data() + 16 * b, half_.data() + 3 * b,
+                     rows + kPathBoxSize * i);
+            swept_bounds(rows + kPathBoxSize * i, bounds + 6 * i, bounds + 6 * i + 3);
+        }
+    }
+
+    void put_reads(nb::handle frames, nb::handle values, int column, std::initializer_list<int> parts) {
+        MutStates view(state_.data(), {state_.size() / kFrameStateSize, size_t(kFrameStateSize)});
+        ::put_reads(view, frames, values, column, parts);
+    }
+
+    static nb::list to_list(const std::vector<int64_t> &v) {
+        nb::list out;
+        for (const int64_t x : v) out.append(x);
+        return out;
+    }
+
+    // A list (or any sequence) of indices below n.
+    static std::vector<int64_t> from_list(nb::handle seq, size_t n, const char *what) {
+        PyObject *fast = PySequence_Fast(seq.ptr(), "expected a sequence of indices");
+        if (!fast) throw nb::python_error();
+        const Py_ssize_t m = PySequence_Fast_GET_SIZE(fast);
+        std::vector<int64_t> out(size_t(m > 0 ? m : 0));
+        for (Py_ssize_t i = 0; i < m; ++i) {
+            const long long x = PyLong_AsLongLong(PySequence_Fast_GET_ITEM(fast, i));
+            if (x == -1 && PyErr_Occurred()) {
+                Py_DECREF(fast);
+                throw nb::python_error();
+            }
+            out[size_t(i)] = x;
+        }
+        Py_DECREF(fast);
+        for (const int64_t x : out) check_index(x, n, what);
+        return out;
+    }
+
+    size_t n_;
+    std::vector<int64_t> box_frame_;
+    std::vector<double> radius_, X_CS_, half_, sweep_reach_;
+    std::vector<int64_t> frame_body_;
+    std::vector<uint8_t> self_collides_;
+    std::vector<int64_t> group_, mask_;
+    int mode_;
+    std::vector<double> state_;
+};
 
 // (coeffs (3, 4, 4), error bound) of one box's path over [lo, hi].
 nb::tuple py_fit_path(const In<kPathBoxSize> &box, double lo, double hi) {
@@ -474,7 +779,28 @@ double py_refine_crossing(const In<-1> &coeffs, double lo, double hi, int max_se
     return refine_crossing(poly_of(coeffs), lo, hi, max_secant);
 }
 
+// ---------------------------------------------------------------- hooks
+// A Python callable as a builtin function (builtin_function_or_method), for the
+// plugin's wrappers of pybullet's functions: pybullet_utils.bullet_client passes
+// its client id only to callables that inspect.isbuiltin() accepts. The method
+// definitions live as long as the module (one per wrapped name).
+PyObject *forward_call(PyObject *self, PyObject *args, PyObject *kwargs) { return PyObject_Call(self, args, kwargs); }
+
+nb::object as_builtin(nb::object fn, const std::string &name, const std::string &doc) {
+    if (!PyCallable_Check(fn.ptr())) throw nb::type_error("as_builtin: expected a callable");
+    static std::vector<PyMethodDef *> *defs = new std::vector<PyMethodDef *>;
+    char *n = new char[name.size() + 1], *d = new char[doc.size() + 1];
+    std::copy(name.c_str(), name.c_str() + name.size() + 1, n);
+    std::copy(doc.c_str(), doc.c_str() + doc.size() + 1, d);
+    defs->push_back(new PyMethodDef{n, reinterpret_cast<PyCFunction>(reinterpret_cast<void (*)()>(forward_call)),
+                                    METH_VARARGS | METH_KEYWORDS, d});
+    return checked(PyCFunction_New(defs->back(), fn.ptr()));
+}
+
 }  // namespace
+
+// Link paths and the first touch of boxes on any paths: chain_bindings.cpp.
+void bind_chain(nb::module_ &m);
 
 NB_MODULE(_core, m) {
     m.doc() = "Compiled core of bullet_boxccd: the BMS box-box time-of-impact solver.";
@@ -534,18 +860,40 @@ NB_MODULE(_core, m) {
     m.def("sections", &sections);
     m.def("planes", &planes);
     m.def("path_depth", &py_path_depth, nb::arg("boxes"), nb::arg("taus"));
+    m.def("path_separation", &py_path_separation, nb::arg("boxes"), nb::arg("tau"));
     m.def("first_depth", &py_first_depth, nb::arg("boxes"), nb::arg("tau_from"), nb::arg("target"));
     m.def("swept_bounds", &py_swept_bounds, nb::arg("boxes"));
-    m.def("fast_boxes", &py_fast_boxes, nb::arg("state"), nb::arg("dt"), nb::arg("box_frame"), nb::arg("radius"),
-          nb::arg("sweep_reach"));
     m.def("path_rows", &py_path_rows, nb::arg("state"), nb::arg("dt"), nb::arg("boxes"), nb::arg("box_frame"),
           nb::arg("X_CS"), nb::arg("half"));
+    nb::class_<Sweeper>(m, "Sweeper")
+        .def(nb::init<const Index<-1> &, const In<-1> &, const In<-1, 4, 4> &, const In<-1, 3> &, const In<-1> &,
+                      const Index<-1> &, const Bytes &, const Index<-1> &, const Index<-1> &, int>(),
+             nb::arg("box_frame"), nb::arg("radius"), nb::arg("X_CS"), nb::arg("half"), nb::arg("sweep_reach"),
+             nb::arg("frame_body"), nb::arg("self_collides"), nb::arg("group"), nb::arg("mask"),
+             nb::arg("filter_mode"))
+        .def_prop_ro("state", [](nb::handle self) { return nb::cast<Sweeper &>(self).state(self); },
+                     "The frames' state (F, 13): a numpy view of the sweeper's own rows.")
+        .def("put_twists", &Sweeper::put_twists, nb::arg("frames"), nb::arg("twists"))
+        .def("put_poses", &Sweeper::put_poses, nb::arg("frames"), nb::arg("poses"))
+        .def("fast", &Sweeper::fast, nb::arg("dt"), nb::arg("frames") = nb::none(), nb::arg("twists") = nb::none())
+        .def("rows", &Sweeper::rows, nb::arg("dt"), nb::arg("boxes"))
+        .def("touches", &Sweeper::touches, nb::arg("dt"), nb::arg("boxes"), nb::arg("n_moving"), nb::arg("all_others"),
+             nb::arg("fit_tolerance"), nb::arg("tolerances"), nb::arg("penetration"), nb::arg("creep"),
+             nb::arg("outcomes") = nb::none());
     m.def("frame_poses", &py_frame_poses, nb::arg("state"), nb::arg("dt"), nb::arg("frames"), nb::arg("taus"));
     m.def("candidate_pairs", &py_candidate_pairs, nb::arg("bounds"), nb::arg("n_fast"), nb::arg("frame"),
-          nb::arg("frame_body"), nb::arg("frame_flags"));
+          nb::arg("frame_body"), nb::arg("self_collides"), nb::arg("group"), nb::arg("mask"), nb::arg("filter_mode"));
+    m.def("path_rows_between", &py_path_rows_between, nb::arg("poses0"), nb::arg("poses1"), nb::arg("boxes"),
+          nb::arg("box_frame"), nb::arg("X_CS"), nb::arg("half"));
+    m.def("layouts", &layouts);
+    m.def("row_poses", &py_row_poses, nb::arg("rows"), nb::arg("taus"));
+    m.def("bullet_step_angle", &bullet_step_angle, nb::arg("speed"), nb::arg("dt"));
+    m.def("resolve_collision", &py_resolve_collision, nb::arg("bodies"), nb::arg("points"), nb::arg("normal"),
+          nb::arg("e"), nb::arg("mu"), nb::arg("sweeps"));
+    m.def("window_rows", &py_window_rows, nb::arg("rows"), nb::arg("lo"), nb::arg("hi"));
     m.def("fit_path", &py_fit_path, nb::arg("box"), nb::arg("lo"), nb::arg("hi"));
     m.def("first_touches", &py_first_touches, nb::arg("rows"), nb::arg("pairs"), nb::arg("fit_tolerance"),
-          nb::arg("tolerances"), nb::arg("states") = false);
+          nb::arg("tolerances"), nb::arg("penetration") = 0.0, nb::arg("creep") = -1.0, nb::arg("states") = false);
     m.def("path_contact", &py_path_contact, nb::arg("boxes"), nb::arg("lo"), nb::arg("hi"), nb::arg("tolerances"));
     m.def("first_nonpositive", &py_first_nonpositive, nb::arg("coeffs"), nb::arg("lo"), nb::arg("hi"),
           "(s, clustered): poly.hpp's first s in (lo, hi] with p(s) <= 0 (NaN: none), for tests.");
@@ -554,4 +902,6 @@ NB_MODULE(_core, m) {
     m.def("refine_crossing", &py_refine_crossing, nb::arg("coeffs"), nb::arg("lo"), nb::arg("hi"),
           nb::arg("max_secant"), "poly.hpp's bracketed crossing with at most max_secant Illinois steps, for tests.");
     m.attr("kRootWidth") = kRootWidth;
+    m.def("as_builtin", &as_builtin, nb::arg("fn"), nb::arg("name"), nb::arg("doc"));
+    bind_chain(m);
 }

@@ -1,0 +1,114 @@
+#include "box_path.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+namespace boxccd {
+
+namespace {
+
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+constexpr double kInf = std::numeric_limits<double>::infinity();
+
+double norm3(const double *v) { return std::sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]); }
+
+// Overlap of the two boxes' projections on unit axis u (negative: a gap).
+double overlap_on(const double *u, const double *X_WA, const double *ha, const double *X_WB, const double *hb,
+                  const double *d) {
+    double r = 0.0;
+    for (int i = 0; i < 3; ++i) {
+        r += ha[i] * std::fabs(u[0] * X_WA[i] + u[1] * X_WA[4 + i] + u[2] * X_WA[8 + i]);
+        r += hb[i] * std::fabs(u[0] * X_WB[i] + u[1] * X_WB[4 + i] + u[2] * X_WB[8 + i]);
+    }
+    return r - std::fabs(u[0] * d[0] + u[1] * d[1] + u[2] * d[2]);
+}
+
+}  // namespace
+
+RowBoxPath::RowBoxPath(const double *row) {
+    std::copy(row, row + PathRow::kSize, row_);
+    const double *X_CS = row_ + PathRow::kBoxInFrame;
+    const double t[3] = {X_CS[3], X_CS[7], X_CS[11]};
+    reach_ = norm3(t) + norm3(row_ + PathRow::kHalfExtents);
+    finite_ = std::all_of(row_, row_ + PathRow::kSize, [](double x) { return std::isfinite(x); });
+}
+
+void RowBoxPath::pose(double tau, double *X_WS) const { row_pose(row_, tau, X_WS); }
+
+double RowBoxPath::fit(double lo, double hi, double *coeffs) const {
+    // fit_path bounds the 3x3 part's error by err, so a point at distance r from
+    // the frame's origin is off by at most err r; mapped back through the fitted
+    // 3x3 part (|inverse| <= 1 / (1 - err)) that is the growth in the box's frame.
+    const double err = fit_path(row_, lo, hi, coeffs);
+    return err < 1.0 ? err * reach_ / (1.0 - err) : kInf;
+}
+
+int RowBoxPath::pieces(double fit_tolerance) const { return fit_pieces(row_, fit_tolerance); }
+
+double pose_depth(const double *X_WA, const double *ha, const double *X_WB, const double *hb) {
+    const double d[3] = {X_WB[3] - X_WA[3], X_WB[7] - X_WA[7], X_WB[11] - X_WA[11]};
+    double depth = std::numeric_limits<double>::infinity();
+    for (int i = 0; i < 3; ++i) {  // face normals (rigid boxes: the axes are orthonormal)
+        const double ua[3] = {X_WA[i], X_WA[4 + i], X_WA[8 + i]}, ub[3] = {X_WB[i], X_WB[4 + i], X_WB[8 + i]};
+        depth = std::fmin(depth, overlap_on(ua, X_WA, ha, X_WB, hb, d));
+        depth = std::fmin(depth, overlap_on(ub, X_WA, ha, X_WB, hb, d));
+    }
+    for (int i = 0; i < 3; ++i)
+        for (int j = 0; j < 3; ++j) {
+            const double a[3] = {X_WA[i], X_WA[4 + i], X_WA[8 + i]}, b[3] = {X_WB[j], X_WB[4 + j], X_WB[8 + j]};
+            double u[3] = {a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]};
+            const double n = norm3(u);
+            if (!(n > kParallel)) continue;  // parallel edges give no axis (unit a, b: |a x b| is the sine)
+            for (double &x : u) x /= n;
+            depth = std::fmin(depth, overlap_on(u, X_WA, ha, X_WB, hb, d));
+        }
+    return depth;
+}
+
+double path_depth(const BoxPath &a, const BoxPath &b, double tau) {
+    double X_WA[16], X_WB[16];
+    a.pose(tau, X_WA);
+    b.pose(tau, X_WB);
+    return pose_depth(X_WA, a.half_extents(), X_WB, b.half_extents());
+}
+
+double first_touch(const BoxPath &a, const BoxPath &b, double fit_tolerance, const Tolerances &tol, long &solves,
+                   Outcome &outcome, double depth0) {
+    outcome = Outcome::Separated;
+    if (!a.finite() || !b.finite()) {
+        outcome = Outcome::NonFinite;
+        return kNaN;
+    }
+    if (std::isnan(depth0)) depth0 = path_depth(a, b, 0.0);
+    if (depth0 >= 0.0) {  // touching at the start: the fitted motions, exact there, touch too
+        outcome = Outcome::Initial;
+        return 0.0;
+    }
+    const int n = std::max(a.pieces(fit_tolerance), b.pieces(fit_tolerance));
+    for (int k = 0; k < n; ++k) {  // pieces in order: the first that touches has the first touch
+        const double lo = double(k) / n, hi = double(k + 1) / n;
+        double coeffs_a[48], coeffs_b[48];
+        const double grow_a = a.fit(lo, hi, coeffs_a), grow_b = b.fit(lo, hi, coeffs_b);
+        // No proven fit (too fast even for 64 pieces, or a fit overflowed): early, never late.
+        bool fitted = grow_a < kInf && grow_b < kInf;
+        for (int i = 0; i < 48; ++i) fitted = fitted && std::isfinite(coeffs_a[i]) && std::isfinite(coeffs_b[i]);
+        if (!fitted) return lo;
+        double lo_a[3], hi_a[3], lo_b[3], hi_b[3];
+        for (int i = 0; i < 3; ++i) {
+            hi_a[i] = a.half_extents()[i] + grow_a;
+            lo_a[i] = -hi_a[i];
+            hi_b[i] = b.half_extents()[i] + grow_b;
+            lo_b[i] = -hi_b[i];
+        }
+        Query query({lo_a, hi_a, coeffs_a}, {lo_b, hi_b, coeffs_b}, 0.0, 1.0, tol);
+        const Hit h = query.solve(false);
+        ++solves;
+        if (h.contact()) {
+            outcome = h.outcome;  // a degraded one (early, not proven) stays what it is
+            return lo + h.t * (hi - lo);
+        }
+    }
+    return kNaN;
+}
+
+}  // namespace boxccd

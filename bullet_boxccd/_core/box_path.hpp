@@ -1,0 +1,79 @@
+// A box on an arbitrary within-step path, and the first touch of two of them.
+//
+// tau in [0, 1] is the fraction of the step (0: its start, 1: after it). A path
+// kind says three things about its box: the exact pose at tau, a quadratic fit
+// of that pose over a piece [lo, hi] of the step with how much the box must grow
+// for the fitted motion to hold the true box throughout the piece, and how many
+// pieces keep that growth small. Two kinds exist: RowBoxPath (a free frame's
+// path row, step_path.hpp) and LinkBoxPath (a link of an articulated body,
+// chain.hpp). first_touch takes any two, so the plugin sweeps link boxes
+// against anything with one function.
+#pragma once
+
+#include <limits>
+
+#include "box_ccd.hpp"
+#include "step_path.hpp"
+
+namespace boxccd {
+
+class BoxPath {
+  public:
+    virtual ~BoxPath() = default;
+    // X_WS(tau): the box's pose at step fraction tau, 4x4 row-major (the box's
+    // axes as columns, its centre as the last column), world frame.
+    virtual void pose(double tau, double *X_WS) const = 0;
+    // (3,) half extents of the box.
+    virtual const double *half_extents() const = 0;
+    // The quadratic motion M(s) = C0 + C1 s + C2 s^2, s = (tau - lo) / (hi - lo)
+    // in [0, 1], interpolating X_WS at lo, (lo + hi) / 2 and hi, written to
+    // coeffs (3x4x4 row-major), and returned: how much each half extent must
+    // grow (a length) so that the box, so grown, on M(s) holds the true box
+    // at every tau of the piece. +inf when no growth is proven to do it.
+    virtual double fit(double lo, double hi, double *coeffs) const = 0;
+    // Pieces (1, 2, 4, ... 64) of the step for which the growth stays below
+    // fit_tolerance times the box's smallest half extent (64 if none does).
+    virtual int pieces(double fit_tolerance) const = 0;
+    // Whether every number the path holds is finite (one that is not has no touch).
+    virtual bool finite() const = 0;
+};
+
+// A box on a free frame's path row (PathRow, 42 doubles, copied).
+class RowBoxPath : public BoxPath {
+  public:
+    explicit RowBoxPath(const double *row);
+    void pose(double tau, double *X_WS) const override;
+    const double *half_extents() const override { return row_ + PathRow::kHalfExtents; }
+    double fit(double lo, double hi, double *coeffs) const override;
+    int pieces(double fit_tolerance) const override;
+    bool finite() const override { return finite_; }
+    const double *row() const { return row_; }
+
+  private:
+    double row_[PathRow::kSize];
+    double reach_;  // the farthest point of the box from its frame's origin
+    bool finite_;
+};
+
+// Separating-axis overlap depth of two boxes at poses X_WA, X_WB (4x4) with
+// half extents ha, hb: > 0 overlapping by that much, <= 0 apart (the gap,
+// negated, along the best of the 15 axes). The same test as path_depth.
+double pose_depth(const double *X_WA, const double *ha, const double *X_WB, const double *hb);
+
+// pose_depth of two paths' boxes at tau.
+double path_depth(const BoxPath &a, const BoxPath &b, double tau);
+
+// The first touch of two boxes on their fitted motions: the step is cut into
+// the larger of the two paths' pieces, and on each piece, in order, both
+// fitted motions carry their boxes grown by the fit's growth, so the answer is
+// never later than the true first touch and never misses one. The step
+// fraction, or NaN if they stay apart (or a path is not finite). A piece whose growth is not finite
+// (motion too fast to fit even in 64 pieces) is reported as touching at its
+// start (early, never late). depth0: path_depth at 0 if known (NaN: computed);
+// touching then is a touch at 0. `solves` counts the solver calls. `outcome` says
+// what happened (Separated, NonFinite, Initial for a touch at 0, or the solver's
+// outcome on the touching piece: a degraded one is early and not proven).
+double first_touch(const BoxPath &a, const BoxPath &b, double fit_tolerance, const Tolerances &tol, long &solves,
+                   Outcome &outcome, double depth0 = std::numeric_limits<double>::quiet_NaN());
+
+}  // namespace boxccd

@@ -1,0 +1,359 @@
+"""Drop-in tunneling prevention for pybullet worlds (this package is the only one that
+imports pybullet).
+
+``BoxCCD.step()`` replaces ``p.stepSimulation()``. The flow of a step, one module each:
+
+1. ``world``: bring the tracked boxes up to date with what changed since the last
+   step (bodies created, removed, re-massed, filters), from the journal that
+   ``_hooks`` keeps of pybullet's world-changing calls; ``shapes`` reads a body's boxes.
+2. pybullet takes its step (with ``numSubSteps = n``, the plugin takes the n substeps
+   itself and sweeps each).
+3. ``state``: read the velocities of the moving frames (and the poses of the
+   kinematic ones: static bodies the user moves).
+4. ``sweep``: the fast boxes' exact within-step paths (Bullet moves a centre of mass
+   linearly with the post-solve velocity and turns it about a fixed axis:
+   ``_core/step_path.hpp``), their partners from pybullet's own broad phase on the
+   swept bounds, the filters (``filters``: pybullet's own, mirrored), and each pair's
+   first touch on conservatively fitted quadratic motions (the BMS solver).
+5. ``impact``: rewind the free bodies that touched to their first touch on Bullet's
+   own path, push what a kinematic body swept into ahead of it; pybullet's contact
+   solver handles the impact in the next step.
+6. ``events``: the step's contacts and the running counters.
+
+Why sweep after the step rather than predict before it: the path depends on the
+post-solve velocity, which is known only after pybullet solved the step's contacts;
+afterwards the path is exact, not predicted.
+"""
+
+from __future__ import annotations
+
+import math
+import numbers
+import time
+from contextlib import contextmanager
+from dataclasses import replace
+
+import numpy as np
+
+from .._arrays import as_float_array
+from ..solver import DEFAULT_TOLERANCES, InvalidInputError, Tolerances
+from ._hooks import last_serial, raw, replay_impulses
+from .events import BoxCCDWarning, CCDEvent, CCDStats
+from .impact import Impacts
+from .state import FrameState
+from .sweep import jump_sweep, sweep
+from .world import STATIC, World, pose_matrix, warn_once
+
+__all__ = ["BoxCCD", "BoxCCDWarning", "CCDEvent", "CCDStats"]
+
+
+class BoxCCD:
+    """Continuous collision detection for every box in a pybullet world.
+
+    Parameters
+    ----------
+    physics_client_id : int
+        A connected pybullet client.
+    sweep_threshold : float
+        A box is swept when its fastest point moves more than this fraction of the
+        box's smallest full extent in a step (a slower box overlaps anything it meets in
+        some step, so pybullet's discrete contacts catch it). Default 0.25; at least 0;
+        above 1 a box may skip a thin wall unswept (warned).
+    fit_tolerance : float
+        Largest allowed error of the quadratic rotation fit, as a fraction of the box's
+        smallest half extent, in (0, 1]; a step is split into 2, 4, ... pieces until it
+        holds, and the box is inflated by what remains. Default 0.05.
+    penetration : float
+        Depth (m) of the rewound overlap of the sharp boxes, in (0, 1e-3]. Default 2e-7.
+    self_collision_bodies : iterable of int
+        Bodies whose links collide with each other.
+    exact_time : bool
+        Instead of rewinding only the bodies that touched, stop every free body at the
+        step's earliest contact and simulate the rest of the step from there (up to
+        ``max_partial_steps`` times a step). Articulated and kinematic bodies are not
+        stopped.
+    max_partial_steps : int
+        At least 0. Default 8.
+    tolerances : Tolerances
+        Solver tolerances.
+    """
+
+    def __init__(self, physics_client_id: int = 0, *, sweep_threshold: float = 0.25, fit_tolerance: float = 0.05,
+                 penetration: float = 2e-7, self_collision_bodies=(), exact_time: bool = False,
+                 max_partial_steps: int = 8, tolerances: Tolerances = DEFAULT_TOLERANCES):
+        self.cid = _client(physics_client_id)
+        self.sweep_threshold = _number("sweep_threshold", sweep_threshold, 0.0, math.inf)
+        self.fit_tolerance = _number("fit_tolerance", fit_tolerance, 0.0, 1.0, open_low=True)
+        self.penetration = _number("penetration", penetration, 0.0, 1e-3, open_low=True)
+        self.exact_time = _flag("exact_time", exact_time)
+        self.max_partial_steps = _count("max_partial_steps", max_partial_steps)
+        if not isinstance(tolerances, Tolerances):
+            raise InvalidInputError(f"tolerances: expected a Tolerances, got {type(tolerances).__name__}")
+        self.tolerances = tolerances
+        self.stats = CCDStats()
+        self._warned = set()
+        self._warn = warn_once(self._warned)
+        if self.sweep_threshold > 1.0:
+            self._warn(("sweep_threshold",), f"sweep_threshold = {self.sweep_threshold:g}: a box that moves less "
+                                             "than that many extents a step is not swept, and can skip a wall")
+        bodies = _bodies(self.cid, self_collision_bodies, "self_collision_bodies")
+        self.world = World(self.cid, bodies, self._warn)
+        self.impacts = Impacts(self.cid, self.penetration, self.fit_tolerance, self.tolerances, self.exact_time,
+                               self.stats)
+        self._params_seen = -1
+        self._moves_seen = self.world.journal.last_move  # moves made while building the world are not sweeps
+        self._quiet, self._epoch = False, -1  # whether a step may skip every check (see step)
+        self._sync()
+
+    # ------------------------------------------------------------ the world
+    def refresh(self) -> None:
+        """Read the whole world again (``step`` does what is needed by itself)."""
+        self.world.tables = None
+        self._sync()
+
+    def _sync(self):
+        if self.world.sync():
+            self.stats.rediscoveries += 1
+            t = self.world.tables
+            self._sweep_reach = self.sweep_threshold * 2.0 * t.half.min(axis=1) if len(t.half) else np.zeros(0)
+            self._state = FrameState(self.cid, t, self._sweep_reach)
+            self.stats.tracked_boxes = len(t.half)
+            small = t.half.min() if len(t.half) else math.inf
+            if self.penetration >= 0.01 * small:
+                self._warn(("penetration", small), f"penetration = {self.penetration:g} m is not small against "
+                                                  f"the thinnest tracked box (half extent {small:g} m)")
+        j = self.world.journal
+        if j.params > self._params_seen or j.reset > self._params_seen:
+            params = raw.getPhysicsEngineParameters(physicsClientId=self.cid)
+            self._dt, self._substeps = params["fixedTimeStep"], max(int(params.get("numSubSteps", 0)), 1)
+            self._gravity = np.array([params.get(f"gravityAcceleration{c}", 0.0) for c in "XYZ"])
+            self._params_seen = max(j.params, j.reset)
+        if not (math.isfinite(self._dt) and self._dt > 0.0):
+            raise InvalidInputError(f"the world's fixedTimeStep is {self._dt!r}; expected a finite number > 0 "
+                                    "(p.setTimeStep)")
+        if self._substeps > 1 and j.pd_control:
+            self._warn(("pd",), "with numSubSteps > 1 BoxCCD takes the substeps itself: torques of PD_CONTROL and "
+                                "STABLE_PD_CONTROL motors are computed again for each substep")
+
+    def _user_moves(self):
+        """Static frames the user moved since the last step, those given a velocity, and
+        every frame the user teleported."""
+        j, t = self.world.journal, self.world.tables
+        seen = self._moves_seen
+        if j.last_move <= seen:
+            return [], [], set()
+        self._moves_seen = j.last_move
+        if j.restored > seen:  # restoreState: every body jumped; no kinematic move is known
+            self._state.read_poses(np.flatnonzero(t.kind == STATIC).tolist())
+            return [], [], set(range(len(t.keys)))
+        moved = [f for b, s in j.moved.items() if s > seen for f in t.frames_of.get(b, ())]
+        given = [f for b, s in j.velocity_set.items() if s > seen for f in t.frames_of.get(b, ())]
+        return ([f for f in moved if t.kind[f] == STATIC], [f for f in given if t.kind[f] == STATIC], set(moved))
+
+    # ------------------------------------------------------------- stepping
+    def step(self) -> list:
+        """``p.stepSimulation()`` followed by the sweep and rewind; returns this step's contacts."""
+        cid = self.cid
+        if self._quiet and last_serial() == self._epoch and raw.getNumBodies(physicsClientId=cid) == self.world.count:
+            # Nothing changed in the world since the last step: step, read the velocities
+            # (the one read per body pybullet's API forces), and stop there if nothing is fast.
+            raw.stepSimulation(physicsClientId=cid)
+            st = self._state
+            fast = st.sweeper.fast(self._dt, st.moving, st.twists())
+            self.stats.steps += 1
+            if fast is None:
+                return []
+            events = self._quiet_sweep(fast, time.perf_counter())
+        else:
+            events = self._full_step()
+            self.stats.steps += 1
+        self._quiet = self._substeps == 1 and not self._state.with_velocity and not self.impacts.watch
+        self._epoch = last_serial()
+        return events
+
+    def _quiet_sweep(self, fast, t0):
+        """The sweep of a step taken in a world where nothing changed (no user move, no
+        kinematic velocity, one substep): what ``_step`` does then, without its checks."""
+        if self.exact_time:
+            return self._step(self._dt, 0.0, self._dt, fast=fast)
+        st, t, dt = self._state, self.world.tables, self._dt
+        st.begin_kinematic((), ())
+        sw = sweep(self.cid, t, st, dt, self.fit_tolerance, self.tolerances, self.penetration, self.stats, t0, fast)
+        if sw is None:
+            return []
+        t3 = time.perf_counter()
+        events, _ = self.impacts.resolve(sw, None, t, st, dt, set(), self._gravity)
+        self.stats.seconds["rewind"] += time.perf_counter() - t3
+        return events
+
+    def _full_step(self):
+        self._sync()
+        dt, n = self._dt, self._substeps
+        impulses = self.world.journal.impulses
+        if n == 1:
+            events = self._step(dt, 0.0, dt)
+        else:
+            events = []
+            with self._substepping(dt, n):
+                for k in range(n):
+                    if k:  # pybullet cleared the user's forces after the last substep
+                        replay_impulses(self.cid, impulses)
+                    events += self._step(dt / n, k * dt / n, dt)
+        impulses.clear()
+        if self.impacts.watch:
+            self._state.read_velocities()
+            self.impacts.guard(self.world.tables, self._state)
+        return events
+
+    @contextmanager
+    def _substepping(self, dt, n):
+        """The world set to take one substep per stepSimulation, then back as the user had it."""
+        raw.setPhysicsEngineParameter(fixedTimeStep=dt / n, numSubSteps=0, physicsClientId=self.cid)
+        try:
+            yield
+        finally:
+            raw.setPhysicsEngineParameter(fixedTimeStep=dt, numSubSteps=n, physicsClientId=self.cid)
+
+    def _step(self, h, offset, dt, fast=None):
+        """One stepSimulation of h seconds (``offset`` into the user's step of dt), swept;
+        in exact-time mode, again from the earliest contact until the step is done.
+        ``fast``: pybullet took the step already, the velocities are read, and these are
+        the fast boxes (``Sweeper.fast``)."""
+        moved_static, with_velocity, user_moved = self._user_moves()
+        t_start, elapsed, events = time.perf_counter(), 0.0, []
+        try:
+            for _ in range(1 + (self.max_partial_steps if self.exact_time else 0)):
+                self._state.begin_kinematic(moved_static, with_velocity)
+                if fast is None:
+                    raw.stepSimulation(physicsClientId=self.cid)
+                t_sim = time.perf_counter()
+                self.stats.seconds["step"] += t_sim - t_start
+                found, tau = self._sweep(h - elapsed, t_sim, user_moved, fast)
+                fast = None
+                if found:
+                    events += [_shifted(e, offset + elapsed, dt) for e in found]
+                if not self.exact_time or tau >= 1.0:
+                    break
+                # Exact-time mode: the world stopped at tau of this (partial) step;
+                # simulate the rest of the step from there.
+                elapsed += tau * (h - elapsed)
+                moved_static, user_moved = [], set()
+                if h - elapsed <= 1e-9 * h:
+                    break
+                raw.setPhysicsEngineParameter(fixedTimeStep=h - elapsed, physicsClientId=self.cid)
+                t_start = time.perf_counter()
+        finally:
+            if elapsed:
+                raw.setPhysicsEngineParameter(fixedTimeStep=h, physicsClientId=self.cid)
+        return events
+
+    def _sweep(self, h, t0, user_moved, fast=None):
+        t = self.world.tables
+        if not len(t.half):
+            return [], 1.0
+        st = self._state
+        if fast is None:
+            st.read_velocities()
+        st.end_kinematic(h)
+        sw = sweep(self.cid, t, st, h, self.fit_tolerance, self.tolerances, self.penetration, self.stats, t0, fast)
+        jw = jump_sweep(self.cid, t, st, h, self.fit_tolerance, self.tolerances, self.penetration, self.stats)
+        if sw is None and jw is None:
+            return [], 1.0
+        t3 = time.perf_counter()
+        events, tau = self.impacts.resolve(sw, jw, t, st, h, user_moved, self._gravity)
+        self.stats.seconds["rewind"] += time.perf_counter() - t3
+        return events, tau
+
+    # --------------------------------------------------------- declarations
+    def register_box(self, body: int, link: int, half_extents, position=(0.0, 0.0, 0.0),
+                     orientation=(0.0, 0.0, 0.0, 1.0)) -> None:
+        """Declare a box on a frame whose shapes cannot be read (BoxCCD warns which).
+        ``position``/``orientation`` place the box in the link's centre-of-mass frame, as
+        ``getCollisionShapeData`` would."""
+        body, link = _body_link(self.cid, body, link)
+        half = as_float_array("half_extents", half_extents, (3,), finite=True)
+        if not np.all(half > 0):
+            raise InvalidInputError(f"half_extents is {half.tolist()}; expected three numbers > 0")
+        pos = as_float_array("position", position, (3,), finite=True)
+        q = as_float_array("orientation", orientation, (4,), finite=True)
+        if not np.dot(q, q) > 0:
+            raise InvalidInputError("orientation is (0, 0, 0, 0); expected a quaternion (x, y, z, w)")
+        if self.world.frame_readable(body, link):
+            raise InvalidInputError(f"body {body} link {link}: its shapes are readable; register_box is for "
+                                    "frames whose boxes BoxCCD cannot read")
+        X = pose_matrix(pos, q)
+        for h, X_old in self.world.registered.get((body, link), (0, []))[1]:
+            if np.array_equal(h, half) and np.array_equal(X, X_old):
+                raise InvalidInputError(f"body {body} link {link}: this box is registered already")
+        self.world.register(body, link, (half, X))
+        self._sync()
+
+    def set_collision_filter_pair(self, body_a: int, body_b: int, link_a: int, link_b: int, enable: bool) -> None:
+        """``p.setCollisionFilterPair`` (which BoxCCD also sees when called directly)."""
+        body_a, link_a = _body_link(self.cid, body_a, link_a)
+        body_b, link_b = _body_link(self.cid, body_b, link_b)
+        import pybullet  # the wrapped function, so that the journal records it
+
+        pybullet.setCollisionFilterPair(body_a, body_b, link_a, link_b, int(_flag("enable", enable)),
+                                        physicsClientId=self.cid)
+
+    def summary(self) -> str:
+        """What is tracked, and what is left to pybullet."""
+        return self.world.summary()
+
+
+# ------------------------------------------------------------------ checks
+def _client(cid):
+    if isinstance(cid, bool) or not isinstance(cid, numbers.Integral):
+        raise InvalidInputError(f"physics_client_id is {cid!r}; expected an int")
+    if not raw.getConnectionInfo(int(cid))["isConnected"]:
+        raise InvalidInputError(f"physics_client_id is {cid!r}; it is not connected (p.connect)")
+    return int(cid)
+
+
+def _number(name, value, low, high, open_low=False):
+    if isinstance(value, bool) or not isinstance(value, numbers.Real):
+        raise InvalidInputError(f"{name} is {value!r}; expected a number")
+    v = float(value)
+    if not (math.isfinite(v) and (v > low if open_low else v >= low) and v <= high):
+        span = f"{'(' if open_low else '['}{low:g}, {high:g}]"
+        raise InvalidInputError(f"{name} is {value!r}; expected a finite number in {span}")
+    return v
+
+
+def _flag(name, value):
+    if not isinstance(value, (bool, np.bool_)):
+        raise InvalidInputError(f"{name} is {value!r}; expected True or False")
+    return bool(value)
+
+
+def _count(name, value):
+    if isinstance(value, bool) or not isinstance(value, numbers.Integral) or value < 0:
+        raise InvalidInputError(f"{name} is {value!r}; expected an int >= 0")
+    return int(value)
+
+
+def _body_exists(cid, b):
+    return any(raw.getBodyUniqueId(i, physicsClientId=cid) == b for i in range(raw.getNumBodies(physicsClientId=cid)))
+
+
+def _bodies(cid, bodies, name):
+    out = set()
+    for b in bodies:
+        if isinstance(b, bool) or not isinstance(b, numbers.Integral) or not _body_exists(cid, int(b)):
+            raise InvalidInputError(f"{name}: {b!r} is not a body of physics client {cid}")
+        out.add(int(b))
+    return out
+
+
+def _body_link(cid, body, link):
+    (body,) = _bodies(cid, [body], "body")
+    if isinstance(link, bool) or not isinstance(link, numbers.Integral) or not (
+            -1 <= link < raw.getNumJoints(body, physicsClientId=cid)):
+        raise InvalidInputError(f"link {link!r} is not a link of body {body} (-1 is the base)")
+    return body, int(link)
+
+
+def _shifted(e: CCDEvent, elapsed: float, dt: float) -> CCDEvent:
+    """An event of a partial step or substep, timed from the start of the whole step."""
+    return e if not elapsed else replace(e, time=e.time + elapsed, tau=(e.time + elapsed) / dt)

@@ -1,0 +1,80 @@
+"""What the plugin reports: contact events, counters, and its warning category."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..solver import Feature, Outcome
+
+__all__ = ["BoxCCDWarning", "CCDEvent", "CCDStats"]
+
+
+class BoxCCDWarning(UserWarning):
+    """Something in the world BoxCCD cannot see or handle (named in the message); what
+    it concerns is left to pybullet."""
+
+
+@dataclass(frozen=True)
+class CCDEvent:
+    """A contact found by sweeping a step.
+
+    ``tau`` is the contact's fraction of the step (0 = start, 1 = end) and ``time``
+    the same in seconds after the step started; ``point`` and ``normal`` (unit,
+    from box A towards box B) are world coordinates at the first touch;
+    ``feature`` names the BMS plane; ``rewound`` says whether a body of the pair was
+    put back at the contact (or, pushed by a kinematic body, ahead of it); False for a
+    graze shallower than the rewind depth, or when neither body can be moved;
+    ``initial`` marks a pair that already touched when the step began and pressed
+    deeper during it.
+    """
+
+    body_a: int
+    link_a: int
+    body_b: int
+    link_b: int
+    tau: float
+    time: float
+    point: np.ndarray
+    normal: np.ndarray
+    feature: Feature
+    rewound: bool
+    initial: bool
+
+
+@dataclass
+class CCDStats:
+    """Counters since construction (``tracked_boxes`` is the current count)."""
+
+    steps: int = 0
+    tracked_boxes: int = 0
+    swept_boxes: int = 0
+    candidate_pairs: int = 0
+    solver_rows: int = 0  # solver calls: a pair whose step is split into n pieces counts up to n
+    contacts: int = 0
+    rewinds: int = 0
+    pushes: int = 0  # bodies moved ahead of a kinematic body that swept into them
+    held: int = 0  # contacts pybullet's solve left pressing in, resolved as collisions by the plugin
+    bounded: int = 0  # partings of handled impacts slowed to what restitution allows
+    rediscoveries: int = 0  # world changes read
+    # What the exact searches answered, by Outcome value (index with bullet_boxccd.Outcome):
+    # every candidate pair's first touch and every contact refit. A degraded answer
+    # (STEP_CAP, CLUSTERED_ROOTS: early, not proven a contact) is acted on like a contact,
+    # which is never late, and counted here under its own name, never as a HIT;
+    # NON_FINITE counts pairs with a row pybullet left not finite (left to pybullet).
+    outcomes: np.ndarray = field(default_factory=lambda: np.zeros(len(Outcome), dtype=np.int64))
+    # Wall time by phase: pybullet's stepSimulation, reading state, broad phase, solving,
+    # rewinding. A step in a world where nothing changed since the last is not timed
+    # until something in it is fast (its stepSimulation then counts for nothing here).
+    seconds: dict = field(default_factory=lambda: dict.fromkeys(
+        ("step", "state", "broad_phase", "solve", "rewind"), 0.0))
+
+    @property
+    def degraded(self) -> int:
+        """Answers that hit a cap or a root cluster (``outcomes`` of STEP_CAP and CLUSTERED_ROOTS)."""
+        return int(self.outcomes[Outcome.STEP_CAP] + self.outcomes[Outcome.CLUSTERED_ROOTS])
+
+    def count(self, states) -> None:
+        """Add the outcomes ``states`` (int8 values of Outcome) to ``outcomes``."""
+        self.outcomes += np.bincount(np.asarray(states, dtype=np.int64), minlength=len(self.outcomes))

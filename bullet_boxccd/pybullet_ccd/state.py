@@ -1,0 +1,112 @@
+"""Reading the frames' state from pybullet (one call per frame: pybullet has no batch
+read) into the core's frame-state rows (``layout``), and keeping the start-of-step
+poses of kinematic frames.
+
+A kinematic frame is a ``STATIC`` one (a fixed base) that the user moves: teleported
+between steps (``resetBasePositionAndOrientation``), or given a velocity
+(``resetBaseVelocity``: Bullet then moves a fixed multibody base by it during the
+step, the way it moves any body). Its move is two parts: the jump from its pose after
+the previous step (E0) to the pose the step started from (P1: Bullet's path from the
+pose after the step, E1, taken back to the step's start), instantaneous as far as
+the step's physics is concerned; then the step's own motion from P1 to E1, swept like
+any other.
+"""
+
+from __future__ import annotations
+
+from functools import partial
+
+import numpy as np
+
+from .. import _core
+from ._hooks import raw
+from .layout import POSE
+from .world import STATIC
+
+__all__ = ["FrameState"]
+
+# Relative size below which a kinematic frame's jump is rounding of the path's
+# reconstruction, not a move.
+_JUMP = 1e-12
+
+
+def _readers(cid, body, link):
+    """pybullet's (pose, velocity) reads of a frame's centre of mass as they come: ((x,
+    y, z), (qx, qy, qz, qw)) and ((vx, vy, vz), (wx, wy, wz)) (world)."""
+    if link == -1:
+        return (partial(raw.getBasePositionAndOrientation, body, physicsClientId=cid),
+                partial(raw.getBaseVelocity, body, physicsClientId=cid))
+    return (lambda: raw.getLinkState(body, link, physicsClientId=cid)[:2],
+            lambda: raw.getLinkState(body, link, computeLinkVelocity=1, physicsClientId=cid)[6:8])
+
+
+class FrameState:
+    """The (F, 13) state of every frame after the current step, and the kinematic frames."""
+
+    def __init__(self, cid, tables, sweep_reach):
+        self.cid, self.tables = cid, tables
+        f = tables.filters
+        # The core's sweeper holds the box tables and the rows (``rows`` is a numpy view of
+        # them): a step's calls into the core pass no array.
+        self.sweeper = _core.Sweeper(tables.box_frame, tables.radius, tables.X_CS, tables.half, sweep_reach,
+                                     tables.body, tables.self_collides, f.group, f.mask, f.mode)
+        self.rows = self.sweeper.state
+        self._pose, self._twist = zip(*(_readers(cid, b, link) for b, link in tables.keys)) if tables.keys else ((), ())
+        static = np.flatnonzero(tables.kind == STATIC).tolist()
+        self._static = set(static)
+        self.fresh = set()  # moving or kinematic frames whose poses in ``rows`` are this step's (read or set)
+        self.read_poses(static)
+        self.moving = list(tables.moving)  # frames whose velocity is read at every step
+        self._moving_twists = [self._twist[f] for f in self.moving]
+        self.with_velocity = set()  # static frames the user gave a velocity (Bullet moves them)
+        self.kinematic = []  # static frames the user moved before the current step, or that have a velocity
+        self.pose0 = {}  # kinematic frame -> its pose before the current step (E0)
+        self.jumps = {}  # kinematic frame -> (E0, P1): it jumped before the step
+
+    def twists(self) -> list:
+        """pybullet's velocity reads of the moving frames, as they come."""
+        return [read() for read in self._moving_twists]
+
+    def read_velocities(self):
+        self.sweeper.put_twists(self.moving, self.twists())
+
+    def read_poses(self, frames):
+        if frames:
+            pose = self._pose
+            self.sweeper.put_poses(frames, [pose[f]() for f in frames])
+            self.fresh.update(frames)
+
+    def stale(self, frames):
+        """Those of ``frames`` whose poses in ``rows`` are not this step's."""
+        fresh, static = self.fresh, self._static
+        return [f for f in frames if f not in fresh and f not in static]
+
+    def begin_kinematic(self, moved_static, with_velocity):
+        """Before the step: note the static frames the user moved since the last step and
+        those with a velocity (their poses before the step are the ones known now)."""
+        self.fresh = set()
+        if not (moved_static or with_velocity or self.with_velocity):
+            self.pose0, self.kinematic = {}, []
+            return
+        self.with_velocity.update(with_velocity)
+        frames = sorted(set(moved_static) | self.with_velocity)
+        self.pose0 = {f: self.rows[f, POSE].copy() for f in frames}
+        self.kinematic = frames
+
+    def end_kinematic(self, dt):
+        """After the step: the kinematic frames' poses and velocities now; the frames that
+        jumped (E0 != P1) go to ``jumps`` as {frame: (E0, P1)}."""
+        frames = self.kinematic
+        self.jumps = {}
+        if not frames:
+            return
+        self.read_poses(frames)
+        self.sweeper.put_twists(frames, [self._twist[f]() for f in frames])
+        starts = _core.frame_poses(self.rows, dt, np.array(frames, dtype=np.int64), np.zeros(len(frames)))
+        for f, p1 in zip(frames, starts):
+            e0 = self.pose0[f]
+            a, b = p1[3:], e0[3:]
+            turn = b[3] * a[:3] - a[3] * b[:3] - np.cross(a[:3], b[:3])  # sin(angle / 2) axis of q1 q0^-1
+            if np.abs(p1[:3] - e0[:3]).max() > _JUMP * (1.0 + np.abs(e0[:3]).max()) or \
+                    np.linalg.norm(turn) > _JUMP:
+                self.jumps[f] = (e0, p1)

@@ -1,0 +1,190 @@
+"""The sweep of one step: which boxes moved fast, their exact paths, their partners
+(pybullet's own broad phase on the swept bounds), and each candidate pair's first
+touch. The numerics run in the core (``_core.Sweeper``: the fast boxes, then path
+rows, swept bounds, candidate pairs and first touches in one call); this module
+decides what to read and what to ask.
+
+A box is swept when its fastest point moves more than ``sweep_threshold`` of its
+smallest extent in the step (a slower one overlaps anything it meets in some step, so
+pybullet's discrete contacts catch it). Static frames have a constant path, but for a
+kinematic one (``state``), given a velocity, which Bullet moves like any other body.
+A kinematic frame's jump (the user's teleport before the step) is swept apart, in
+``jump_sweep``, against the free bodies where the step found them.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from .. import _core
+from ._hooks import raw
+from .layout import POSE, TWIST
+from .world import FREE
+
+__all__ = ["Sweep", "sweep", "jump_sweep", "moves_into", "CREEP"]
+
+# A pair touching when the step (or a window of it) begins is a contact pybullet holds
+# unless it presses in by more than this fraction of the thinner box's half extent.
+CREEP = 0.02
+
+
+@dataclass
+class Sweep:
+    """A step's sweep: path rows of the boxes involved, the candidate pairs, and those
+    that touched."""
+
+    rows: np.ndarray  # (n, 42) path rows
+    boxes: np.ndarray  # (n,) their box indices
+    pairs: np.ndarray  # (m, 2) candidate pairs of rows
+    hits: list  # (row a, row b, first touch as a step fraction), in the order found
+
+    @property
+    def pair_index(self) -> dict:
+        return {(int(i), int(j)): q for q, (i, j) in enumerate(self.pairs.tolist())}
+
+
+# A step's partners of the fast boxes come from pybullet's broad phase (one
+# getOverlappingObjects per fast box) unless reading every moving frame's pose costs
+# less: measured on pybullet 3.2.7, the query costs about as much as 4 pose reads; the
+# world's boxes then pass through the core's own broad phase, up to this many.
+_READS_PER_QUERY = 4
+_OWN_BROAD_PHASE_BOXES = 64
+
+
+def sweep(cid, tables, state, dt, fit_tolerance, tolerances, penetration, stats, t0, fast=None):
+    """Sweep the step just taken (``state`` holds the velocities of the moving frames and
+    the kinematic frames' poses; ``fast`` what ``state.sweeper.fast`` found, if it was
+    asked already). Returns a Sweep, or None if nothing touched."""
+    sweeper = state.sweeper
+    if fast is None:
+        fast = sweeper.fast(dt)
+        if fast is None:
+            stats.seconds["state"] += time.perf_counter() - t0
+            return None
+    fast, slack, fast_frames = fast
+    state.read_poses(state.stale(fast_frames))
+    stats.swept_boxes += len(fast)
+    t1 = time.perf_counter()
+    stats.seconds["state"] += t1 - t0
+    boxes, all_others = fast, False
+    if len(tables.half) <= _OWN_BROAD_PHASE_BOXES and \
+            len(state.moving) <= len(fast_frames) + _READS_PER_QUERY * len(fast):
+        # Every moving frame where the step left it, and the core's broad phase.
+        state.read_poses(state.stale(state.moving))
+        all_others = True
+    else:
+        # Only the partners pybullet's own broad phase finds near the fast boxes' swept
+        # bounds (a slow body can be anywhere within its reach of the pose it knows, so
+        # the query is widened by the largest such reach).
+        _, bounds = sweeper.rows(dt, fast)
+        partners = _partners(cid, tables, bounds, slack, fast_frames)
+        state.read_poses(state.stale(partners))
+        boxes = fast + [b for f in partners for b in tables.frame_boxes[f]]
+    t2 = time.perf_counter()
+    stats.seconds["broad_phase"] += t2 - t1
+    n_pairs, solves, found = sweeper.touches(dt, boxes, len(fast), all_others, fit_tolerance, tolerances._core,
+                                             penetration, CREEP, stats.outcomes)
+    stats.candidate_pairs += n_pairs
+    stats.solver_rows += solves
+    stats.seconds["solve"] += time.perf_counter() - t2
+    if found is None:
+        return None
+    boxes, rows, pairs, hits = found
+    f = tables.filters
+    if f.rules:
+        frames = tables.box_frame[boxes]
+        pairs = pairs[f.allowed_pairs(frames[pairs[:, 0]], frames[pairs[:, 1]])]
+        allowed = set(map(tuple, pairs.tolist()))
+        hits = [h for h in hits if h[:2] in allowed]
+    return Sweep(rows, boxes, pairs, hits) if hits else None
+
+
+def _partners(cid, tables, bounds, slack, exclude):
+    """Frames pybullet's broad phase finds within ``slack`` of the given bounds."""
+    near, index, w = set(), tables.index, slack + 1e-9
+    for x0, y0, z0, x1, y1, z1 in bounds.tolist():
+        found = raw.getOverlappingObjects((x0 - w, y0 - w, z0 - w), (x1 + w, y1 + w, z1 + w), physicsClientId=cid)
+        if found:
+            near.update(index[key] for key in found if key in index)
+    return sorted(near.difference(exclude))
+
+
+def _pairs(tables, boxes, bounds, n_moving):
+    """The candidate pairs (rows into ``boxes``) of the first ``n_moving`` boxes with
+    the others and each other: bounds overlap, and pybullet's filters let them collide."""
+    f, frames = tables.filters, tables.box_frame[boxes]
+    pairs = _core.candidate_pairs(bounds, n_moving, frames, tables.body, tables.self_collides, f.group, f.mask,
+                                  f.mode)
+    if f.rules and len(pairs):
+        pairs = pairs[f.allowed_pairs(frames[pairs[:, 0]], frames[pairs[:, 1]])]
+    return pairs
+
+
+def _hits(pairs, tau):
+    """(row a, row b, first touch as a step fraction) of the pairs that touch."""
+    hit = np.flatnonzero(~np.isnan(tau))
+    return [(i, j, t) for (i, j), t in zip(pairs[hit].tolist(), tau[hit].tolist())] if len(hit) else []
+
+
+def moves_into(cid, tables, moves, frozen_of, widen, fit_tolerance, tolerances, penetration, stats):
+    """Kinematic frames moving straight from pose to pose (``moves``: {frame: (pose0,
+    pose1)}) against the free bodies standing still: ``frozen_of(partners)`` gives the
+    (F, 13) state of the free frames pybullet's broad phase finds within ``widen`` of the
+    moves. A Sweep whose first rows are the moving boxes and whose hits have a moving box
+    first; None if nothing was met."""
+    if not moves:
+        return None
+    frames = sorted(moves)
+    moving = np.array([b for f in frames for b in tables.frame_boxes[f]], dtype=np.int64)
+    poses0, poses1 = np.zeros((len(tables.keys), 7)), np.zeros((len(tables.keys), 7))
+    for f in frames:
+        poses0[f], poses1[f] = moves[f]
+    rows = _core.path_rows_between(poses0, poses1, moving, tables.box_frame, tables.X_CS, tables.half)
+    bounds = _core.swept_bounds(rows)
+    partners = [f for f in _partners(cid, tables, bounds, widen, frames) if tables.kind[f] == FREE]
+    if not partners:
+        return None
+    still = frozen_of(partners).copy()
+    still[:, TWIST] = 0.0
+    more = np.array([b for f in partners for b in tables.frame_boxes[f]], dtype=np.int64)
+    more_rows = _core.path_rows(still, 1.0, more, tables.box_frame, tables.X_CS, tables.half)
+    boxes, rows = np.concatenate([moving, more]), np.concatenate([rows, more_rows])
+    pairs = _pairs(tables, boxes, np.concatenate([bounds, _core.swept_bounds(more_rows)]), len(moving))
+    pairs = pairs[pairs[:, 1] >= len(moving)] if len(pairs) else pairs
+    if not len(pairs):
+        return None
+    tau, states, solves = _core.first_touches(rows, pairs, fit_tolerance, tolerances._core, penetration, CREEP,
+                                              states=True)
+    stats.solver_rows += solves
+    stats.count(states)
+    hits = _hits(pairs, tau)
+    return Sweep(rows, boxes, pairs, hits) if hits else None
+
+
+def step_reach(state, tables, dt):
+    """The farthest any box's point moves in the step."""
+    if not len(tables.radius):
+        return 0.0
+    twist = state.rows[tables.box_frame]
+    return float(np.max((np.linalg.norm(twist[:, 7:10], axis=1) + np.linalg.norm(twist[:, 10:13], axis=1)
+                         * tables.radius) * dt))
+
+
+def jump_sweep(cid, tables, state, dt, fit_tolerance, tolerances, penetration, stats):
+    """The kinematic frames' jumps (from E0 to P1, before the step's physics) against the
+    free bodies where the step started (on Bullet's path at tau = 0)."""
+    if not state.jumps:
+        return None
+
+    def at_start(partners):
+        state.read_poses(state.stale(partners))
+        start = state.rows.copy()
+        start[partners, POSE] = _core.frame_poses(state.rows, dt, np.array(partners, dtype=np.int64),
+                                                  np.zeros(len(partners)))
+        return start
+
+    return moves_into(cid, tables, state.jumps, at_start, step_reach(state, tables, dt), fit_tolerance, tolerances,
+                      penetration, stats)

@@ -1,0 +1,452 @@
+"""BoxCCD as a drop-in for ordinary pybullet worlds: nothing to call but ``step()``.
+
+Each behaviour is checked against pybullet itself, with the plain-pybullet contrast in
+the same test: maximal-coordinate bodies, collision filters set with pybullet's own
+calls, kinematic bodies the user moves, bodies removed and re-created under the same
+id, masses changed, substeps, and every bad argument."""
+
+from __future__ import annotations
+
+import os
+import tempfile
+import warnings
+
+import numpy as np
+import pybullet as p
+import pybullet_data
+import pytest
+from pybullet_utils import bullet_client
+
+from bullet_boxccd import BoxCCD, InvalidInputError, _core
+from bullet_boxccd.pybullet_ccd import BoxCCDWarning, layout
+from bullet_boxccd.pybullet_ccd.shapes import probe_boxes
+
+DT = 1 / 240
+CUBE_SMALL = os.path.join(pybullet_data.getDataPath(), "cube_small.urdf")
+
+
+@pytest.fixture(scope="module")
+def cid():
+    c = p.connect(p.DIRECT)
+    yield c
+    p.disconnect(c)
+
+
+def reset(cid, gravity=0.0):
+    p.resetSimulation(physicsClientId=cid)
+    p.setTimeStep(DT, physicsClientId=cid)
+    p.setGravity(0, 0, gravity, physicsClientId=cid)
+
+
+def box(cid, half, pos, mass=1.0, maximal=False, orn=(0, 0, 0, 1), **kw):
+    col = p.createCollisionShape(p.GEOM_BOX, halfExtents=half, physicsClientId=cid, **kw)
+    b = p.createMultiBody(mass, col, basePosition=pos, baseOrientation=orn, useMaximalCoordinates=maximal,
+                          physicsClientId=cid)
+    if mass > 0:
+        p.changeDynamics(b, -1, linearDamping=0, angularDamping=0, maxJointVelocity=10000, physicsClientId=cid)
+    return b
+
+
+def x_of(cid, b):
+    return p.getBasePositionAndOrientation(b, physicsClientId=cid)[0][0]
+
+
+def throw(cid, cube, speed=100.0, spin=(3.0, -2.0, 5.0)):
+    p.resetBaseVelocity(cube, [speed, 0, 0], list(spin), physicsClientId=cid)
+
+
+def run(cid, use, steps, before_step=None):
+    ccd = BoxCCD(cid) if use else None
+    for k in range(steps):
+        if before_step:
+            before_step(k)
+        ccd.step() if ccd else p.stepSimulation(physicsClientId=cid)
+    return ccd
+
+
+class CFile:
+    """Everything written to the process's stdout and stderr file descriptors (C-level
+    prints included) while inside the ``with``."""
+
+    def __enter__(self):
+        self.tmp = tempfile.TemporaryFile(mode="w+b")
+        self.saved = [os.dup(1), os.dup(2)]
+        for fd in (1, 2):
+            os.dup2(self.tmp.fileno(), fd)
+        return self
+
+    def __exit__(self, *exc):
+        for fd, saved in zip((1, 2), self.saved):
+            os.dup2(saved, fd)
+            os.close(saved)
+        self.tmp.seek(0)
+        self.text = self.tmp.read().decode(errors="replace")
+        self.tmp.close()
+
+
+# ------------------------------------------------------ maximal coordinates
+def maximal_cube_through_wall(cid, use, make, phase):
+    reset(cid)
+    box(cid, [0.0005, 1, 1], [0, 0, 0], mass=0.0)
+    cube = make(cid, [-0.3 - phase * 100 * DT, 0.1, 0.05])
+    throw(cid, cube)
+    run(cid, use, 40)
+    return x_of(cid, cube) > 0.0
+
+
+MAXIMAL = {
+    "createMultiBody": lambda cid, pos: box(cid, [0.05] * 3, pos, maximal=True),
+    "loadURDF cube_small": lambda cid, pos: p.loadURDF(CUBE_SMALL, pos, useMaximalCoordinates=True,
+                                                       physicsClientId=cid),
+}
+
+
+@pytest.mark.parametrize("name", sorted(MAXIMAL))
+def test_maximal_bodies_are_found_and_swept_without_a_c_level_print(cid, name):
+    phases = np.linspace(0, 1, 6, endpoint=False)
+    plain = sum(maximal_cube_through_wall(cid, False, MAXIMAL[name], ph) for ph in phases)
+    with CFile() as out, warnings.catch_warnings():
+        warnings.simplefilter("error", BoxCCDWarning)
+        through = sum(maximal_cube_through_wall(cid, True, MAXIMAL[name], ph) for ph in phases)
+    assert through == 0 and plain >= 3, (through, plain)
+    assert "failed" not in out.text, out.text
+
+
+def test_probes_read_a_maximal_body_made_unseen_exactly(cid):
+    """A maximal body made through pybullet's original function (as before bullet_boxccd
+    was imported) is read by closest-point probes: its corners match the same box made
+    as a multibody, to 1e-9 of its size, for offsets of collision and inertial frames."""
+    raw_create = p._bullet_boxccd_originals["createMultiBody"]
+    rng = np.random.default_rng(11)
+    reset(cid)
+    probe = p.createCollisionShape(p.GEOM_SPHERE, radius=1e-3, physicsClientId=cid)
+    signs = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)])
+    for _ in range(8):
+        half = rng.uniform(0.01, 0.5, 3)  # thicker than twice the 1 mm margin
+        col = p.createCollisionShape(p.GEOM_BOX, halfExtents=half.tolist(),
+                                     collisionFramePosition=rng.uniform(-0.1, 0.1, 3).tolist(),
+                                     collisionFrameOrientation=p.getQuaternionFromEuler(rng.uniform(-3, 3, 3)),
+                                     physicsClientId=cid)
+        kw = dict(baseMass=1.0, baseCollisionShapeIndex=col, basePosition=rng.uniform(-50, 50, 3).tolist(),
+                  baseOrientation=p.getQuaternionFromEuler(rng.uniform(-3, 3, 3)),
+                  baseInertialFramePosition=rng.uniform(-0.1, 0.1, 3).tolist(),
+                  baseInertialFrameOrientation=p.getQuaternionFromEuler(rng.uniform(-3, 3, 3)), physicsClientId=cid)
+        maximal = raw_create(useMaximalCoordinates=True, **kw)
+        twin = p.createMultiBody(**kw)
+
+        def corners(b, h, X_CS):
+            pos, q = p.getBasePositionAndOrientation(b, physicsClientId=cid)
+            X = np.eye(4)
+            X[:3, :3] = np.array(p.getMatrixFromQuaternion(q)).reshape(3, 3)
+            X[:3, 3] = pos
+            return np.sort(((X @ X_CS) @ np.c_[signs * h, np.ones(8)].T).T[:, :3], axis=0)
+
+        pos, q = p.getBasePositionAndOrientation(maximal, physicsClientId=cid)
+        X_WC = np.eye(4)
+        X_WC[:3, :3], X_WC[:3, 3] = np.array(p.getMatrixFromQuaternion(q)).reshape(3, 3), pos
+        (h, X_CS), = probe_boxes(cid, maximal, -1, X_WC, probe)[0]
+        d = p.getCollisionShapeData(twin, -1, physicsClientId=cid)[0]
+        X_twin = np.eye(4)
+        X_twin[:3, :3], X_twin[:3, 3] = np.array(p.getMatrixFromQuaternion(d[6])).reshape(3, 3), d[5]
+        assert np.abs(corners(maximal, h, X_CS) - corners(twin, 0.5 * np.array(d[3]), X_twin)).max() <= 1e-9 * (
+            np.linalg.norm(half))
+
+
+def test_unreadable_maximal_box_is_named_in_one_warning(cid):
+    """A maximal body made unseen whose box is thinner than twice its collision margin
+    cannot be read by probes: one BoxCCDWarning names body and link; a sphere is left
+    to pybullet without a warning."""
+    raw_create = p._bullet_boxccd_originals["createMultiBody"]
+    reset(cid)
+    plate = raw_create(1.0, p.createCollisionShape(p.GEOM_BOX, halfExtents=[0.3, 0.2, 0.0004], physicsClientId=cid),
+                       useMaximalCoordinates=True, physicsClientId=cid)
+    raw_create(1.0, p.createCollisionShape(p.GEOM_SPHERE, radius=0.1, physicsClientId=cid),
+               basePosition=[2, 0, 0], useMaximalCoordinates=True, physicsClientId=cid)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        ccd = BoxCCD(cid)
+        ccd.step()
+        ccd.step()
+    unreadable = [w for w in caught if issubclass(w.category, BoxCCDWarning) and "cannot be read" in str(w.message)]
+    assert len(unreadable) == 1 and f"body {plate} link -1" in str(unreadable[0].message)
+    assert "sphere" in ccd.summary()
+    ccd.register_box(plate, -1, [0.3, 0.2, 0.0004])  # what the warning suggests
+    assert ccd.stats.tracked_boxes == 1
+
+
+# ------------------------------------------------------------------ filters
+def filtered_wall(cid, use, how):
+    reset(cid)
+    wall = box(cid, [0.0005, 1, 1], [0, 0, 0], mass=0.0)
+    cube = box(cid, [0.05] * 3, [-0.3, 0.1, 0.05])
+    if how == "pair":
+        p.setCollisionFilterPair(wall, cube, -1, -1, 0, physicsClientId=cid)
+    elif how == "disjoint groups":
+        p.setCollisionFilterGroupMask(wall, -1, 0b01, 0b01, physicsClientId=cid)
+        p.setCollisionFilterGroupMask(cube, -1, 0b10, 0b10, physicsClientId=cid)
+    elif how == "trigger":  # group 0 / mask 0: collides with nothing
+        p.setCollisionFilterGroupMask(wall, -1, 0, 0, physicsClientId=cid)
+    throw(cid, cube)
+    traj = []
+    run(cid, use, 30, before_step=lambda k: traj.append(p.getBasePositionAndOrientation(cube, physicsClientId=cid)))
+    return np.array([list(a) + list(b) for a, b in traj])
+
+
+@pytest.mark.parametrize("how", ["pair", "disjoint groups", "trigger"])
+def test_filters_set_with_pybullet_behave_exactly_as_in_plain_pybullet(cid, how):
+    plain = filtered_wall(cid, False, how)
+    with_ccd = filtered_wall(cid, True, how)
+    assert plain[-1, 0] > 1.0  # pybullet lets the cube through the filtered wall
+    assert np.array_equal(plain, with_ccd)  # and so does the plugin, bit for bit
+    assert filtered_wall(cid, True, None)[-1, 0] < 0.0  # the contrast: unfiltered, it is stopped
+
+
+def test_filter_modes_and_rules_outliving_a_removed_body(cid):
+    """collisionFilterMode 0 (AND) against pybullet's default 1 (OR), and a pair rule on
+    a removed body's id, which pybullet applies to the body that reuses the id."""
+    for mode in (0, 1):
+        reset(cid)
+        p.setPhysicsEngineParameter(collisionFilterMode=mode, physicsClientId=cid)
+        wall = box(cid, [0.0005, 1, 1], [0, 0, 0], mass=0.0)
+        cube = box(cid, [0.05] * 3, [-0.3, 0.1, 0.05])
+        p.setCollisionFilterGroupMask(wall, -1, 1, 1, physicsClientId=cid)  # cube: group 1, mask -1
+        p.setCollisionFilterGroupMask(cube, -1, 1, 2, physicsClientId=cid)  # wall group 1 & cube mask 2 = 0
+        throw(cid, cube)
+        run(cid, True, 30)
+        assert (x_of(cid, cube) > 1.0) == (mode == 0), mode  # AND: one failing test filters; OR: both must
+    reset(cid)
+    wall = box(cid, [0.0005, 1, 1], [0, 0, 0], mass=0.0)
+    old = box(cid, [0.05] * 3, [-3, 0, 0])
+    p.setCollisionFilterPair(wall, old, -1, -1, 0, physicsClientId=cid)
+    ccd = BoxCCD(cid)
+    p.removeBody(old, physicsClientId=cid)
+    cube = box(cid, [0.05] * 3, [-0.3, 0.1, 0.05])
+    assert cube == old
+    throw(cid, cube)
+    for _ in range(30):
+        ccd.step()
+    assert x_of(cid, cube) > 1.0  # as pybullet itself does
+
+
+def test_a_bullet_client_passes_its_client_id_through_the_wrapped_functions():
+    """pybullet_utils' BulletClient adds physicsClientId only to builtins: the wrappers are
+    builtins, so its calls reach (and are journaled for) its own client."""
+    pb = bullet_client.BulletClient(connection_mode=p.DIRECT)
+    pb.setTimeStep(DT)
+    wall = pb.createMultiBody(0, pb.createCollisionShape(p.GEOM_BOX, halfExtents=[0.0005, 1, 1]))
+    cube = pb.createMultiBody(1, pb.createCollisionShape(p.GEOM_BOX, halfExtents=[0.05] * 3),
+                              basePosition=[-0.3, 0.1, 0.05])
+    pb.setCollisionFilterPair(wall, cube, -1, -1, 0)
+    pb.resetBaseVelocity(cube, [100, 0, 0], [0, 0, 0])
+    ccd = BoxCCD(pb._client)
+    for _ in range(30):
+        ccd.step()
+    assert pb.getBasePositionAndOrientation(cube)[0][0] > 1.0
+
+
+# ------------------------------------------------------------ kinematic bodies
+def paddle_scene(cid, seed, mode, use):
+    """A paddle (2 cm thick) driven at 20-30 m/s through a row of 6 cube_small on the
+    ground: teleported each step, teleported with its velocity set, or dragged by a
+    fixed constraint (pybullet's mocap pattern). Returns (cubes behind the paddle,
+    deepest overlap of a cube and the paddle at the end, the paddle's lag behind its
+    target at the end)."""
+    reset(cid, gravity=-9.81)
+    rng = np.random.default_rng(seed)
+    box(cid, [20, 2, 0.05], [0, 0, -0.05], mass=0.0)
+    cubes = [p.loadURDF(CUBE_SMALL, [0.5 + 0.3 * k + rng.uniform(-0.05, 0.05), rng.uniform(-0.1, 0.1), 0.025],
+                        physicsClientId=cid) for k in range(6)]
+    for c in cubes:
+        p.changeDynamics(c, -1, maxJointVelocity=1000, physicsClientId=cid)
+    speed, x = rng.uniform(20, 30), -0.2
+    col = p.createCollisionShape(p.GEOM_BOX, halfExtents=[0.01, 0.3, 0.1], physicsClientId=cid)
+    paddle = p.createMultiBody(1.0 if mode == "constraint" else 0.0, col, basePosition=[x, 0, 0.1],
+                               physicsClientId=cid)
+    if mode == "constraint":
+        p.changeDynamics(paddle, -1, maxJointVelocity=1000, physicsClientId=cid)
+        con = p.createConstraint(paddle, -1, -1, -1, p.JOINT_FIXED, [0, 0, 0], [0, 0, 0], [x, 0, 0.1],
+                                 physicsClientId=cid)
+    for _ in range(20):
+        p.stepSimulation(physicsClientId=cid)
+
+    def drive(k):
+        target = x + (k + 1) * speed * DT
+        if mode == "constraint":
+            p.changeConstraint(con, [target, 0, 0.1], maxForce=5000, physicsClientId=cid)
+        else:
+            p.resetBasePositionAndOrientation(paddle, [target, 0, 0.1], [0, 0, 0, 1], physicsClientId=cid)
+            if mode == "teleport with velocity":
+                p.resetBaseVelocity(paddle, [speed, 0, 0], [0, 0, 0], physicsClientId=cid)
+
+    n = int(2.6 / (speed * DT))
+    run(cid, use, n, drive)
+    px = x_of(cid, paddle)
+    behind = sum(x_of(cid, c) < px for c in cubes)
+    pts = [q for c in cubes for q in p.getClosestPoints(paddle, c, 0.0, physicsClientId=cid)]
+    return behind, -min((q[8] for q in pts), default=0.0), x + n * speed * DT - px
+
+
+@pytest.mark.parametrize("mode", ["teleport", "teleport with velocity", "constraint"])
+def test_kinematic_and_mocap_paddles_leave_no_cube_behind_and_never_stick(cid, mode):
+    plain = sum(paddle_scene(cid, seed, mode, False)[0] for seed in range(4))
+    assert plain >= 4, f"plain pybullet left only {plain} cubes behind: the test shows nothing"
+    for seed in range(4):
+        behind, deepest, lag = paddle_scene(cid, seed, mode, True)
+        assert behind == 0, (mode, seed)
+        assert deepest < 0.03, (mode, seed, deepest)  # no cube held inside the paddle
+        assert lag < 1.2, (mode, seed, lag)  # the paddle is not held back (plain lags up to 0.5 m)
+
+
+# --------------------------------------------------------------- world changes
+def test_removed_and_recreated_body_with_the_same_id_is_swept(cid):
+    """The usual RL reset: remove a body and create another, which pybullet gives the
+    same id, between two steps."""
+    through = {False: 0, True: 0}
+    for use in (False, True):
+        for phase in np.linspace(0, 1, 6, endpoint=False):
+            reset(cid)
+            box(cid, [0.0005, 1, 1], [0, 0, 0], mass=0.0)
+            old = box(cid, [0.5, 0.5, 0.5], [-5, 0, 0], mass=0.0)
+            ccd = BoxCCD(cid) if use else None
+            ccd.step() if ccd else p.stepSimulation(physicsClientId=cid)
+            p.removeBody(old, physicsClientId=cid)
+            cube = box(cid, [0.05] * 3, [-0.3 - phase * 100 * DT, 0.1, 0.05])
+            assert cube == old
+            throw(cid, cube)
+            for _ in range(30):
+                ccd.step() if ccd else p.stepSimulation(physicsClientId=cid)
+            through[use] += x_of(cid, cube) > 0.0
+    assert through[True] == 0 and through[False] >= 3, through
+
+
+def test_body_made_dynamic_with_change_dynamics_is_swept(cid):
+    through = {False: 0, True: 0}
+    for use in (False, True):
+        for phase in np.linspace(0, 1, 6, endpoint=False):
+            reset(cid)
+            box(cid, [0.0005, 1, 1], [0, 0, 0], mass=0.0)
+            cube = box(cid, [0.05] * 3, [-0.3 - phase * 100 * DT, 0.1, 0.05], mass=0.0)
+            ccd = BoxCCD(cid) if use else None
+            p.changeDynamics(cube, -1, mass=1.0, physicsClientId=cid)
+            throw(cid, cube)
+            for _ in range(30):
+                ccd.step() if ccd else p.stepSimulation(physicsClientId=cid)
+            through[use] += x_of(cid, cube) > 0.0
+    assert through[True] == 0 and through[False] >= 3, through
+
+
+# ------------------------------------------------------------------ substeps
+def quiet_scene(cid, use, substeps, force):
+    reset(cid, gravity=-9.81)
+    p.setPhysicsEngineParameter(numSubSteps=substeps, physicsClientId=cid)
+    box(cid, [2, 2, 0.05], [0, 0, -0.05], mass=0.0)
+    stack = [box(cid, [0.1, 0.1, 0.05], [0.01 * i, 0, 0.05 + 0.1 * i]) for i in range(5)]
+    slider = box(cid, [0.1, 0.1, 0.1], [1.0, 0, 0.1])
+    p.resetBaseVelocity(slider, [0.5, 0, 0], [0, 0, 0], physicsClientId=cid)
+    traj = []
+
+    def push(k):
+        if force:  # pybullet clears forces after every stepSimulation: the plugin replays them per substep
+            p.applyExternalForce(slider, -1, [3, 0, 0], [1.0, 0.02, 0.15], p.WORLD_FRAME, physicsClientId=cid)
+            p.applyExternalTorque(stack[-1], -1, [0, 0, 0.2], p.WORLD_FRAME, physicsClientId=cid)
+        traj.append([p.getBasePositionAndOrientation(b, physicsClientId=cid)[0] for b in stack + [slider]])
+
+    run(cid, use, 300, push)
+    params = p.getPhysicsEngineParameters(physicsClientId=cid)
+    assert params["numSubSteps"] == substeps and params["fixedTimeStep"] == DT  # the user's settings, restored
+    return np.array(traj)
+
+
+@pytest.mark.parametrize("substeps", [2, 4])
+def test_substeps_follow_plain_substepped_pybullet(cid, substeps):
+    for force in (False, True):
+        plain = quiet_scene(cid, False, substeps, force)
+        with_ccd = quiet_scene(cid, True, substeps, force)
+        assert np.abs(plain - with_ccd).max() <= 1e-9, (substeps, force)
+
+
+@pytest.mark.parametrize("substeps", [2, 4])
+def test_substeps_are_each_swept(cid, substeps):
+    through = {False: 0, True: 0}
+    for use in (False, True):
+        for phase in np.linspace(0, 1, 6, endpoint=False):
+            reset(cid)
+            p.setPhysicsEngineParameter(numSubSteps=substeps, physicsClientId=cid)
+            box(cid, [0.0005, 1, 1], [0, 0, 0], mass=0.0)
+            cube = box(cid, [0.05] * 3, [-0.3 - phase * 300 * DT, 0.1, 0.05])
+            throw(cid, cube, speed=300.0)
+            ccd = BoxCCD(cid) if use else None
+            for _ in range(12):
+                ccd.step() if ccd else p.stepSimulation(physicsClientId=cid)
+            through[use] += x_of(cid, cube) > 0.0
+    assert through[True] == 0 and through[False] >= 3, through
+
+
+# ----------------------------------------------------------------- arguments
+@pytest.mark.parametrize("kwargs", [
+    dict(sweep_threshold=float("nan")), dict(sweep_threshold=-0.1), dict(sweep_threshold=float("inf")),
+    dict(fit_tolerance=0.0), dict(fit_tolerance=2.0), dict(penetration=1.0), dict(penetration=0.0),
+    dict(penetration=float("nan")), dict(max_partial_steps=-1), dict(max_partial_steps=2.5),
+    dict(exact_time="yes"), dict(self_collision_bodies=[999]), dict(tolerances=1e-12),
+])
+def test_bad_arguments_raise_naming_argument_and_value(cid, kwargs):
+    reset(cid)
+    box(cid, [0.1] * 3, [0, 0, 0])
+    name = next(iter(kwargs))
+    with pytest.raises(InvalidInputError, match=name):
+        BoxCCD(cid, **kwargs)
+
+
+def test_bad_calls_raise(cid):
+    reset(cid)
+    cube = box(cid, [0.1] * 3, [0, 0, 0])
+    plate = p._bullet_boxccd_originals["createMultiBody"](
+        1.0, p.createCollisionShape(p.GEOM_BOX, halfExtents=[0.3, 0.2, 0.0004], physicsClientId=cid),
+        basePosition=[2, 0, 0], useMaximalCoordinates=True, physicsClientId=cid)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", BoxCCDWarning)
+        ccd = BoxCCD(cid)
+    with pytest.raises(InvalidInputError, match="999"):
+        ccd.register_box(999, -1, [0.1] * 3)
+    with pytest.raises(InvalidInputError, match="link 3"):
+        ccd.register_box(plate, 3, [0.1] * 3)
+    with pytest.raises(InvalidInputError, match="readable"):
+        ccd.register_box(cube, -1, [0.1] * 3)
+    with pytest.raises(InvalidInputError, match="half_extents"):
+        ccd.register_box(plate, -1, [0.1, -1, 0.1])
+    ccd.register_box(plate, -1, [0.3, 0.2, 0.0004])
+    with pytest.raises(InvalidInputError, match="registered already"):
+        ccd.register_box(plate, -1, [0.3, 0.2, 0.0004])
+    with pytest.raises(InvalidInputError, match="999"):
+        ccd.set_collision_filter_pair(999, cube, -1, -1, False)
+    with pytest.raises(InvalidInputError, match="physics_client_id"):
+        BoxCCD(12345)
+
+
+@pytest.mark.parametrize("dt", [0.0, -1 / 240, float("nan")])
+def test_a_world_time_step_that_is_not_a_positive_number_is_an_error_at_step(cid, dt):
+    reset(cid)
+    box(cid, [0.1] * 3, [0, 0, 0])
+    ccd = BoxCCD(cid)
+    p.setTimeStep(dt, physicsClientId=cid)
+    with pytest.raises(InvalidInputError, match="fixedTimeStep"):
+        ccd.step()
+
+
+def test_max_partial_steps_zero_with_exact_time_still_steps(cid):
+    reset(cid)
+    cube = box(cid, [0.1] * 3, [0, 0, 0])
+    p.resetBaseVelocity(cube, [1, 0, 0], [0, 0, 0], physicsClientId=cid)
+    ccd = BoxCCD(cid, exact_time=True, max_partial_steps=0)
+    for _ in range(10):
+        ccd.step()
+    assert x_of(cid, cube) > 0.04
+
+
+# -------------------------------------------------------------------- layout
+def test_named_columns_agree_with_the_core():
+    core = _core.layouts()
+    assert {k: slice(*v) for k, v in core["frame_state"].items()} == layout.FRAME_STATE
+    assert {k: slice(*v) for k, v in core["path_row"].items()} == layout.PATH_ROW
+    assert max(s.stop for s in layout.FRAME_STATE.values()) == layout.STATE_SIZE
+    assert max(s.stop for s in layout.PATH_ROW.values()) == layout.ROW_SIZE
