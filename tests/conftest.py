@@ -61,7 +61,7 @@ def _broken_core(mode):
         code = Outcome.SEPARATED if mode == "never" else Outcome.INITIAL
         return (t, np.full(len(lo_a), int(code), dtype=np.int8)) if states else t
 
-    def first_touches(rows, pairs, fit_tolerance, tol, states=False):
+    def first_touches(rows, pairs, fit_tolerance, tol, penetration=0.0, creep=-1.0, states=False):
         _queried[0] = True
         tau = np.full(len(pairs), np.nan if mode == "never" else 0.0)
         code = Outcome.SEPARATED if mode == "never" else Outcome.INITIAL

@@ -50,6 +50,18 @@ def moving(lo, hi, motion_a, lo_b, hi_b, motion_b, t0=0.0, t1=1.0):
                 np.asarray(hi_b, float), motion_b.coeffs.copy(), t0, t1)
 
 
+def mp_crossing(case, lo, hi):
+    """The mpmath gap's crossing, bisected to 1e-14 of the range in [lo, hi] (gap(lo) > 0 >= gap(hi))."""
+    span = case.t1 - case.t0
+    while hi - lo > 1e-14 * span:
+        mid = 0.5 * (lo + hi)
+        if mp_gap(case, mid) > 0:
+            lo = mid
+        else:
+            hi = mid
+    return hi
+
+
 def true_contact(case, ref=None):
     """Truth: ('hit', t) with t bisected on the mpmath gap, or ('miss', min gap) /
     ('unresolved', min gap) from the oracle's advancement."""
@@ -62,13 +74,7 @@ def true_contact(case, ref=None):
     lo, hi = max(case.t0, ref.t_hit - 1e-9 * span), min(case.t1, ref.t_hit + 1e-9 * span)
     if mp_gap(case, lo) <= 0 or mp_gap(case, hi) > 0:
         return "hit", ref.t_hit  # the float bisection's answer already sits on the crossing
-    while hi - lo > 1e-14 * span:
-        mid = 0.5 * (lo + hi)
-        if mp_gap(case, mid) > 0:
-            lo = mid
-        else:
-            hi = mid
-    return "hit", hi
+    return "hit", mp_crossing(case, lo, hi)
 
 
 @dataclass
@@ -321,13 +327,7 @@ def truth_near(case, twin_truth):
     lo, hi = max(case.t0, value - 1e-7 * span), min(case.t1, value + 1e-7 * span)
     if not (mp_gap(case, lo) > 0 and mp_gap(case, hi) <= 0):
         return true_contact(case)
-    while hi - lo > 1e-14 * span:
-        mid = 0.5 * (lo + hi)
-        if mp_gap(case, mid) > 0:
-            lo = mid
-        else:
-            hi = mid
-    return "hit", hi
+    return "hit", mp_crossing(case, lo, hi)
 
 
 def far_family(n):

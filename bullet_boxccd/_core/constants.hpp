@@ -109,5 +109,9 @@ constexpr int kDepthLookAhead = 48;
 // the refit's boxes grow by this fraction of their reach radius so that the
 // touch found in the window cannot be lost to the refit's rounding.
 constexpr double kMinWindow = 1e-12;
+// A step's fit is cut into at most this many pieces (powers of two): past it the
+// motion is too fast for quadratic pieces to pay, and each piece's box grows by
+// its own proven error instead (fit_path's bound, never late).
+constexpr int kMaxFitPieces = 64;
 
 }  // namespace boxccd

@@ -317,7 +317,7 @@ int fit_pieces(const double *box, double fit_tolerance) {
     const double err1 = kFitErrorPerCubedAngle * phi * phi * phi * reach_radius(box);
     const double allowed = fit_tolerance * std::min({h[0], h[1], h[2]});
     int pieces = 1;
-    while (pieces < 64 && err1 > allowed * pieces * pieces * pieces) pieces *= 2;
+    while (pieces < kMaxFitPieces && err1 > allowed * pieces * pieces * pieces) pieces *= 2;
     return pieces;
 }
 
