@@ -82,11 +82,11 @@ struct ProjectionTable {
             for (int g = 0; g < 6; ++g) p[ax][g] = compute(ax, g);
     }
     static constexpr Projection compute(int axis, int g) {
-        if (axis < 3) {
+        if (axis_kind(axis) == Kind::OV) {
             if (g >= 3) return {static_cast<int8_t>(3 * axis + (g - 3)), 1};
             return {static_cast<int8_t>(g == axis ? kDet : -1), 1};
         }
-        if (axis < 6) {
+        if (axis_kind(axis) == Kind::VO) {
             const int j = axis - 3;
             if (g < 3) return {static_cast<int8_t>(9 + 3 * j + g), 1};
             return {static_cast<int8_t>(g - 3 == j ? kDet + 1 : -1), 1};
