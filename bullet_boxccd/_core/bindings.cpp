@@ -19,6 +19,7 @@
 #include <vector>
 
 #include "box_ccd.hpp"
+#include "box_path.hpp"
 #include "step_path.hpp"
 
 namespace nb = nanobind;
@@ -690,6 +691,23 @@ nb::object py_path_contact(const PathBoxes &boxes, double lo, double hi, const T
     return hit_result(h);
 }
 
+// (t, solves, Contact or None) of paths_first_touch: the contact on the fitted
+// motions when the solver found one (None: apart, or touching where no solve
+// ran: at the start, or on a piece too fast to fit).
+nb::tuple py_paths_contact(const BoxPath &a, const BoxPath &b, double fit_tolerance, const Tolerances &tol) {
+    if (!(fit_tolerance > 0.0))
+        throw nb::value_error(("fit_tolerance must be > 0, got " + std::to_string(fit_tolerance)).c_str());
+    long solves = 0;
+    Hit h;
+    double t;
+    {
+        nb::gil_scoped_release release;
+        t = first_touch(a, b, fit_tolerance, tol, solves, std::numeric_limits<double>::quiet_NaN(), &h);
+    }
+    nb::object contact = h.hit && h.facet >= 0 ? hit_result(h) : nb::none();
+    return nb::make_tuple(t, solves, contact);
+}
+
 // ---------------------------------------------------------------- hooks
 // A Python callable as a builtin function (builtin_function_or_method), for the
 // plugin's wrappers of pybullet's functions: pybullet_utils.bullet_client passes
@@ -792,6 +810,8 @@ NB_MODULE(_core, m) {
     m.def("first_touches", &py_first_touches, nb::arg("rows"), nb::arg("pairs"), nb::arg("fit_tolerance"),
           nb::arg("tolerances"), nb::arg("penetration") = 0.0, nb::arg("creep") = -1.0);
     m.def("path_contact", &py_path_contact, nb::arg("boxes"), nb::arg("lo"), nb::arg("hi"), nb::arg("tolerances"));
+    m.def("paths_contact", &py_paths_contact, nb::arg("a"), nb::arg("b"), nb::arg("fit_tolerance"),
+          nb::arg("tolerances"));
     m.def("as_builtin", &as_builtin, nb::arg("fn"), nb::arg("name"), nb::arg("doc"));
     bind_chain(m);
 }

@@ -227,6 +227,33 @@ double paths_depth(const BoxPath &a, const BoxPath &b, double tau) {
     return path_depth(a, b, tau);
 }
 
+// (depth, axis (3,)): pose_separation of the two boxes at tau.
+nb::tuple paths_separation(const BoxPath &a, const BoxPath &b, double tau) {
+    check_tau(tau);
+    double X_WA[16], X_WB[16], *axis;
+    auto out = new_array<3>({3}, axis);
+    a.pose(tau, X_WA);
+    b.pose(tau, X_WB);
+    const double depth = pose_separation(X_WA, a.half_extents(), X_WB, b.half_extents(), axis);
+    return nb::make_tuple(depth, out);
+}
+
+double paths_first_depth(const BoxPath &a, const BoxPath &b, double from, double target) {
+    check_tau(from);
+    if (!std::isfinite(target)) throw nb::value_error("target must be finite");
+    nb::gil_scoped_release release;
+    return first_depth(a, b, from, target);
+}
+
+Out<6> bounds_of(const BoxPath &path, int pieces) {
+    if (pieces < 1 || pieces > 4096)
+        throw nb::value_error(("pieces must be in [1, 4096], got " + std::to_string(pieces)).c_str());
+    double *out;
+    auto a = new_array<6>({6}, out);
+    path_bounds(path, pieces, out, out + 3);
+    return a;
+}
+
 }  // namespace
 
 void bind_chain(nb::module_ &m) {
@@ -259,6 +286,9 @@ void bind_chain(nb::module_ &m) {
         .def("poses", &path_poses, nb::arg("taus"))
         .def("fit", &path_fit, nb::arg("lo"), nb::arg("hi"))
         .def("pieces", &path_pieces, nb::arg("fit_tolerance"))
+        .def("travel", [](const BoxPath &p, double lo, double hi) { check_piece(lo, hi); return p.travel(lo, hi); },
+             nb::arg("lo"), nb::arg("hi"), "How far any point of the box can be, over [lo, hi], from its place at the middle.")
+        .def("bounds", &bounds_of, nb::arg("pieces") = 4, "(6,) world bounds (lo, hi) of the box over the step.")
         .def_prop_ro("half_extents", &path_half_extents, nb::rv_policy::move);
     nb::class_<RowBoxPath, BoxPath>(m, "RowBoxPath", "A box on a free frame's path row.")
         .def("__init__", [](RowBoxPath *self, const Doubles &row) { new (self) RowBoxPath(make_row_box(row)); },
@@ -278,4 +308,6 @@ void bind_chain(nb::module_ &m) {
     m.def("paths_first_touch", &paths_first_touch, nb::arg("a"), nb::arg("b"), nb::arg("fit_tolerance"),
           nb::arg("tolerances"));
     m.def("paths_depth", &paths_depth, nb::arg("a"), nb::arg("b"), nb::arg("tau"));
+    m.def("paths_separation", &paths_separation, nb::arg("a"), nb::arg("b"), nb::arg("tau"));
+    m.def("paths_first_depth", &paths_first_depth, nb::arg("a"), nb::arg("b"), nb::arg("from_tau"), nb::arg("target"));
 }
