@@ -185,7 +185,8 @@ class BoxCCD:
         self._chains.read(dt, st)
         sw = None if fast is None else sweep(self.cid, t, st, dt, self.fit_tolerance, self.tolerances,
                                              self.penetration, self.stats, t0, fast)
-        events, _ = self._chains_sweep(dt)
+        events, _, pushed = self._chains_sweep(dt)
+        sw = _without(sw, pushed, t)
         if sw is not None:
             t3 = time.perf_counter()
             events += self.impacts.resolve(sw, None, t, st, dt, set(), self._gravity)[0]
@@ -194,7 +195,7 @@ class BoxCCD:
 
     def _chains_sweep(self, h):
         if not self._chains.bodies:
-            return [], {}
+            return [], {}, set()
         t0 = time.perf_counter()
         out = self._chains.sweep(h, self._state, self._sweep_reach, self.fit_tolerance, self.tolerances,
                                  self.penetration, self.stats)
@@ -276,7 +277,8 @@ class BoxCCD:
         jw = jump_sweep(self.cid, t, st, h, self.fit_tolerance, self.tolerances, self.penetration, self.stats)
         # Articulated bodies first, on Bullet's paths of everything (their stops change no
         # free body's path); then the free bodies' contacts.
-        events, stopped = self._chains_sweep(h)
+        events, stopped, pushed = self._chains_sweep(h)
+        sw = _without(sw, pushed, t)
         if sw is None and jw is None:
             return events, 1.0  # an articulated body's stop does not stop the world
         t3 = time.perf_counter()
@@ -374,6 +376,16 @@ def _body_link(cid, body, link):
             -1 <= link < raw.getNumJoints(body, physicsClientId=cid)):
         raise InvalidInputError(f"link {link!r} is not a link of body {body} (-1 is the base)")
     return body, int(link)
+
+
+def _without(sw, frames, tables):
+    """The sweep without the contacts of ``frames`` (free boxes an articulated body's link
+    pushed: their paths are no longer Bullet's); None if none is left."""
+    if sw is None or not frames:
+        return sw
+    box_frame = tables.box_frame[sw.boxes]
+    sw.hits = [h for h in sw.hits if box_frame[h[0]] not in frames and box_frame[h[1]] not in frames]
+    return sw if sw.hits else None
 
 
 def _shifted(e: CCDEvent, elapsed: float, dt: float) -> CCDEvent:

@@ -37,9 +37,10 @@ from ..solver import Feature
 from ._hooks import raw
 from .chain import read_chain
 from .events import CCDEvent
+from .impact import _pose4, _pose7
 from .layout import POSE, TWIST
 from .sweep import CREEP
-from .world import LINK
+from .world import FREE, LINK
 
 __all__ = ["Articulated"]
 
@@ -125,7 +126,8 @@ class Articulated:
     # ------------------------------------------------------------ sweeping
     def sweep(self, dt, state, sweep_reach, fit_tolerance, tolerances, penetration, stats):
         """Sweep the fast link boxes; stop the bodies whose pairs pybullet would resolve
-        wrongly. Returns (events, {body: tau it was stopped at})."""
+        wrongly, or push the free box a link presses into. Returns (events, {body: tau it
+        was stopped at}, {free frames pushed})."""
         t = self.tables
         fast = []
         for rec in self.bodies.values():
@@ -134,44 +136,50 @@ class Articulated:
                 if 2.0 * path.travel(0.0, 1.0) > sweep_reach[i]:
                     fast.append((rec, f, i, path))
         if not fast:
-            return [], {}
+            return [], {}, set()
         stats.swept_boxes += len(fast)
         slack = self._slack(state, dt) + 1e-9
         linked = self._linked_bounds(fast, state, dt)
         found = []  # ((touch, act at, contact, initial), rec, frame, partner frame)
         cache, seen = {}, set()
         for rec, f, i, path in fast:
-            lo, hi = path.bounds(4).reshape(2, 3)
-            near = raw.getOverlappingObjects((lo - slack).tolist(), (hi + slack).tolist(),
+            box = path.bounds(4).tolist()
+            near = raw.getOverlappingObjects([x - slack for x in box[:3]], [x + slack for x in box[3:]],
                                              physicsClientId=self.cid) or ()
             candidates = [(t.index[key], j) for key in near if key in t.index and t.index[key] not in self.frames
                           for j in t.frame_boxes[t.index[key]]]
-            candidates += [(int(t.box_frame[j]), j) for j, (lo_j, hi_j) in linked.items()
-                           if np.all(lo_j <= hi) and np.all(lo <= hi_j)]
+            candidates += [(int(t.box_frame[j]), j) for j, other_box in linked.items() if _meet(box, other_box)]
             for g, j in candidates:
                 if g == f or (min(i, j), max(i, j)) in seen or not self._collide(rec, f, g):
                     continue
                 seen.add((min(i, j), max(i, j)))
                 other = self._partner(j, g, state, dt, cache)
-                lo_j, hi_j = linked[j] if j in linked else other.bounds(1).reshape(2, 3)
-                if np.any(lo_j > hi) or np.any(lo > hi_j):
+                if j not in linked and not _meet(box, other.bounds(1).tolist()):
                     continue  # their swept bounds do not meet
                 hit = self._judge(path, other, fit_tolerance, tolerances, penetration, stats)
                 if hit is not None:
-                    found.append((hit, rec, f, g))
-        stops, events = {}, []
-        for (touch, act, c, initial), rec, f, g in sorted(found, key=lambda x: x[0][0]):
-            if act is not None and (rec.body not in stops or act < stops[rec.body]):
-                stops[rec.body] = act
+                    found.append((hit, rec, f, g, (path, other)))
+        stops, pushes, events = {}, [], []
+        for (touch, act, c, initial, pressing), rec, f, g, pair in sorted(found, key=lambda x: x[0][0]):
             partner = self.bodies.get(int(t.body[g]))
-            if act is not None and partner is not None and partner is not rec:
-                stops[partner.body] = min(stops.get(partner.body, act), act)
+            if act is not None and pressing and t.kind[g] == FREE and partner is None:
+                pushes.append((act, rec, f, g, pair))
+            elif act is not None:
+                stops[rec.body] = min(stops.get(rec.body, act), act)
+                if partner is not None and partner is not rec:
+                    stops[partner.body] = min(stops.get(partner.body, act), act)
             events.append(CCDEvent(*t.keys[f], *t.keys[g], touch, touch * dt, c[0], c[1], c[2], act is not None,
                                    initial))
         for b, tau in stops.items():
             self.stop(self.bodies[b], tau, state)
         stats.rewinds += len(stops)
-        return events, stops
+        pushed = set()
+        for tau, rec, f, g, pair in pushes:
+            if rec.body not in stops and g not in pushed:
+                self._push(rec, f, g, tau, pair, state, dt)
+                pushed.add(g)
+        stats.pushes += len(pushed)
+        return events, stops, pushed
 
     def _slack(self, state, dt):
         """The farthest a box of a frame not of an articulated body moves in the step
@@ -186,7 +194,7 @@ class Articulated:
         return float(np.max((v + w * t.radius[rigid]) * dt))
 
     def _linked_bounds(self, fast, state, dt):
-        """{box: (lo, hi)} swept bounds of the articulated bodies' boxes that may meet a fast
+        """{box: [lo (3), hi (3)]} swept bounds of the articulated bodies' boxes that may meet a fast
         one: every box of a body with self-collision and a fast box, and, when there are
         several articulated bodies, all of theirs."""
         bodies = {rec.body for rec, _, _, _ in fast if rec.ancestors is not None}
@@ -196,7 +204,7 @@ class Articulated:
         for b in bodies:
             rec = self.bodies[b]
             for _, j in rec.boxes:
-                out[j] = self._path(rec, j, state, dt).bounds(4).reshape(2, 3)
+                out[j] = self._path(rec, j, state, dt).bounds(4).tolist()
         return out
 
     def _collide(self, rec, f, g):
@@ -222,8 +230,8 @@ class Articulated:
         return cache[("row", j)]
 
     def _judge(self, a, b, fit_tolerance, tolerances, penetration, stats):
-        """(touch, act at or None, (point, normal, feature), initial) of a pair of paths,
-        or None if they stay apart."""
+        """(touch, act at or None, (point, normal, feature), initial, pressing: touching or
+        all but when the step began) of a pair of paths, or None if they stay apart."""
         touch, solves, c = _core.paths_contact(a, b, fit_tolerance, tolerances._core)
         stats.solver_rows += solves
         stats.candidate_pairs += 1
@@ -246,7 +254,34 @@ class Articulated:
             contact = (0.5 * (Xa[:3, 3] + Xb[:3, 3]), n, Feature("", "", ""))
         if math.isnan(act) or not _goes_wrong(a, b, act):
             act = None
-        return touch, act, contact, initial
+        return touch, act, contact, initial, d0 > -creep
+
+    # ------------------------------------------------------------ pushing
+    def _push(self, rec, f, g, tau, pair, state, dt):
+        """Free frame g, pressed into by the link of frame f from tau on, carried with that
+        link's frame from tau to the end of the step, and given the velocity of a collision
+        with an immovable body moving as the link does there (pybullet's combined
+        restitution; spin left as it is)."""
+        link = rec.links[f]
+        frame = (lambda s: rec.motion.base_pose(s)) if link == -1 else (lambda s: rec.motion.link_pose(link, s))
+        F_t, F_1 = _pose4(frame(tau)), _pose4(frame(1.0))
+        X = _pose4(_core.frame_poses(state.rows, dt, np.array([g], dtype=np.int64), np.array([tau]))[0])
+        turn = F_1 @ np.linalg.inv(F_t)
+        X1 = turn @ X
+        _, n = _core.paths_separation(pair[0], pair[1], tau)
+        n = turn[:3, :3] @ n
+        v_link = state.rows[f, 7:10] + np.cross(state.rows[f, 10:13], X1[:3, 3] - F_1[:3, 3])
+        v, w = state.rows[g, 7:10].copy(), state.rows[g, 10:13].copy()
+        approach = float(np.dot(v - v_link, n))
+        if approach < 0.0:
+            e = (raw.getDynamicsInfo(*self.tables.keys[g], physicsClientId=self.cid)[5] *
+                 raw.getDynamicsInfo(*self.tables.keys[f], physicsClientId=self.cid)[5])
+            v -= (1.0 + e) * approach * n
+        pose = _pose7(X1)
+        body = self.tables.keys[g][0]
+        raw.resetBasePositionAndOrientation(body, pose[:3].tolist(), pose[3:].tolist(), physicsClientId=self.cid)
+        raw.resetBaseVelocity(body, v.tolist(), w.tolist(), physicsClientId=self.cid)
+        state.rows[g, POSE], state.rows[g, 7:10] = pose, v
 
     # ------------------------------------------------------------ stopping
     def stop(self, rec, tau, state):
@@ -299,6 +334,11 @@ def _goes_wrong(a, b, s_act):
     return float(np.dot(axis1, n)) < 0.0 or along < 0.5 * reach
 
 
+def _meet(a, b):
+    """Whether two bounds [lo (3), hi (3)] overlap."""
+    return a[0] <= b[3] and b[0] <= a[3] and a[1] <= b[4] and b[1] <= a[4] and a[2] <= b[5] and b[2] <= a[5]
+
+
 def _chords(p0, p1, dt):
     """(n, 6) (v, w) that move frames from poses p0 to p1 ((n, 7): position, quaternion
     x y z w) in dt by Bullet's rule (linear; about a fixed axis), for turns below its
@@ -306,7 +346,9 @@ def _chords(p0, p1, dt):
     v = (p1[:, :3] - p0[:, :3]) / dt
     a, b = p1[:, 3:], p0[:, 3:]
     # q1 q0^-1: the turn from p0 to p1
-    x = b[:, 3:] * a[:, :3] - a[:, 3:] * b[:, :3] - np.cross(a[:, :3], b[:, :3])
+    ax, ay, az, bx, by, bz = a[:, 0], a[:, 1], a[:, 2], b[:, 0], b[:, 1], b[:, 2]
+    cross = np.stack([ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx], axis=1)
+    x = b[:, 3:] * a[:, :3] - a[:, 3:] * b[:, :3] - cross
     c = a[:, 3] * b[:, 3] + np.einsum("ij,ij->i", a[:, :3], b[:, :3])
     x[c < 0.0] *= -1.0
     s = np.linalg.norm(x, axis=1)
