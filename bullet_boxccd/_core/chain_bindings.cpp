@@ -123,6 +123,44 @@ Out<7> base_pose(const ChainMotion &motion, double tau) {
     return a;
 }
 
+// (n, 13) frame-state rows of the given links (-1: the base): the pose after the
+// step, then the velocities (v, w) that carry the pose before the step to it in dt
+// by the free-frame rule (linear; about a fixed axis at a constant rate): the
+// chord of the link's step, for turns below Bullet's pi/4 clamp.
+Out<-1, 13> frame_rows(const ChainMotion &motion, const Ints &links, double dt) {
+    expect(links, "links", {-1});
+    if (!(dt > 0.0) || !std::isfinite(dt)) throw nb::value_error("dt must be finite and > 0");
+    const size_t n = links.shape(0);
+    for (size_t k = 0; k < n; ++k)
+        if (links.data()[k] != -1) check_link(motion.chain(), int(links.data()[k]));
+    double *out;
+    auto a = new_array<-1, 13>({n, 13}, out);
+    for (size_t k = 0; k < n; ++k) {
+        const int link = int(links.data()[k]);
+        double p0[7], *p1 = out + 13 * k;
+        if (link == -1) {
+            motion.base_pose(0.0, p0);
+            motion.base_pose(1.0, p1);
+        } else {
+            motion.link_pose(link, 0.0, p0);
+            motion.link_pose(link, 1.0, p1);
+        }
+        double *v = p1 + 7, *w = p1 + 10;
+        for (int i = 0; i < 3; ++i) v[i] = (p1[i] - p0[i]) / dt;
+        // q1 q0^-1 (x y z w): the turn from the pose before to the pose after.
+        const double *a1 = p1 + 3, *b = p0 + 3;
+        double x[3] = {b[3] * a1[0] - a1[3] * b[0] - (a1[1] * b[2] - a1[2] * b[1]),
+                       b[3] * a1[1] - a1[3] * b[1] - (a1[2] * b[0] - a1[0] * b[2]),
+                       b[3] * a1[2] - a1[3] * b[2] - (a1[0] * b[1] - a1[1] * b[0])};
+        const double c = a1[3] * b[3] + a1[0] * b[0] + a1[1] * b[1] + a1[2] * b[2];
+        const double sgn = c < 0.0 ? -1.0 : 1.0;
+        const double sn = std::sqrt(x[0] * x[0] + x[1] * x[1] + x[2] * x[2]);
+        const double scale = sn > 0.0 ? sgn * 2.0 * std::atan2(sn, std::fabs(c)) / (sn * dt) : 0.0;
+        for (int i = 0; i < 3; ++i) w[i] = x[i] * scale;
+    }
+    return a;
+}
+
 Out<-1> joint_positions(const ChainMotion &motion, double tau) {
     check_tau(tau);
     double *out;
@@ -279,6 +317,8 @@ void bind_chain(nb::module_ &m) {
         .def("link_pose", &link_pose, nb::arg("link"), nb::arg("tau"))
         .def("link_poses", &link_poses, nb::arg("tau"))
         .def("joint_positions", &joint_positions, nb::arg("tau"))
+        .def("frame_rows", &frame_rows, nb::arg("links"), nb::arg("dt"),
+             "(n, 13) the links' (-1: base) poses after the step and the chords of their steps as velocities.")
         .def("fit", &link_fit, nb::arg("link"), nb::arg("lo"), nb::arg("hi"), nb::arg("r") = 0.0)
         .def("fit_bound", &link_fit_bound, nb::arg("link"), nb::arg("lo"), nb::arg("hi"), nb::arg("r") = 0.0);
     nb::class_<BoxPath>(m, "BoxPath", "A box on a within-step path (box_path.hpp); see RowBoxPath, LinkBoxPath.")

@@ -57,6 +57,7 @@ class _Body:
     base_state: np.ndarray = None
     qdot: np.ndarray = None
     paths: dict = field(default_factory=dict)  # box -> BoxPath of the current step
+    link_of_frame: np.ndarray = None  # (len(frames),) int64: each frame's link
 
 
 class Articulated:
@@ -79,6 +80,8 @@ class Articulated:
             bits = self_collision.get(b)
             self.bodies[b] = _Body(b, chain, frames, links, [(f, i) for f in frames for i in tables.frame_boxes[f]],
                                    _excluded(chain.parent, bits) if bits is not None else None)
+        for rec in self.bodies.values():
+            rec.link_of_frame = np.array([rec.links[f] for f in rec.frames], dtype=np.int64)
         self.frames = {f for rec in self.bodies.values() for f in rec.frames}
         self.boxes = np.array(sorted(i for rec in self.bodies.values() for _, i in rec.boxes), dtype=np.int64)
         self._rigid = np.setdiff1d(np.arange(len(tables.radius)), self.boxes, assume_unique=True)
@@ -101,11 +104,7 @@ class Articulated:
                 q = rec.qdot = np.zeros(0)
             rec.motion = rec.chain.motion(rec.base_state, q, rec.qdot, dt)
             rec.paths = {}
-            ends = np.vstack([rec.motion.base_pose(1.0), rec.motion.link_poses(1.0)])
-            starts = np.vstack([rec.motion.base_pose(0.0), rec.motion.link_poses(0.0)])
-            rows = [rec.links[f] + 1 for f in rec.frames]
-            state.rows[rec.frames, POSE] = ends[rows]
-            state.rows[rec.frames, TWIST] = _chords(starts[rows], ends[rows], dt)
+            state.rows[rec.frames] = rec.motion.frame_rows(rec.link_of_frame, dt)
             state.fresh.update(rec.frames)
 
     def _path(self, rec, box, state, dt):
@@ -337,24 +336,6 @@ def _goes_wrong(a, b, s_act):
 def _meet(a, b):
     """Whether two bounds [lo (3), hi (3)] overlap."""
     return a[0] <= b[3] and b[0] <= a[3] and a[1] <= b[4] and b[1] <= a[4] and a[2] <= b[5] and b[2] <= a[5]
-
-
-def _chords(p0, p1, dt):
-    """(n, 6) (v, w) that move frames from poses p0 to p1 ((n, 7): position, quaternion
-    x y z w) in dt by Bullet's rule (linear; about a fixed axis), for turns below its
-    pi/4 clamp."""
-    v = (p1[:, :3] - p0[:, :3]) / dt
-    a, b = p1[:, 3:], p0[:, 3:]
-    # q1 q0^-1: the turn from p0 to p1
-    ax, ay, az, bx, by, bz = a[:, 0], a[:, 1], a[:, 2], b[:, 0], b[:, 1], b[:, 2]
-    cross = np.stack([ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx], axis=1)
-    x = b[:, 3:] * a[:, :3] - a[:, 3:] * b[:, :3] - cross
-    c = a[:, 3] * b[:, 3] + np.einsum("ij,ij->i", a[:, :3], b[:, :3])
-    x[c < 0.0] *= -1.0
-    s = np.linalg.norm(x, axis=1)
-    angle = 2.0 * np.arctan2(s, np.abs(c))
-    w = x * np.divide(angle, s * dt, out=np.zeros_like(s), where=s > 0.0)[:, None]
-    return np.concatenate([v, w], axis=1)
 
 
 def _excluded(parent, bits):
