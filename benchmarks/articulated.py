@@ -16,6 +16,11 @@
    link passes through stays where it was). CPU time (process_time), the minimum
    of ``--repeats`` runs.
 
+3. Resting. pybullet_data's r2d2 (15 links, 5 of them boxes) settled on plane.urdf:
+   CPU time per step with and without the plugin, and what one state read of the
+   robot costs right after a step (pybullet brings the whole body's state up to
+   date for the first query: a cost any reader of the robot pays).
+
 Run
 ---
     python benchmarks/articulated.py            # ~1 min
@@ -25,6 +30,8 @@ from __future__ import annotations
 
 import argparse
 import time
+
+import pybullet_data
 
 import numpy as np
 import pybullet as p
@@ -113,6 +120,37 @@ def cost(cid: int, method, omega: float, steps: int, seed: int):
     return seconds, int((np.linalg.norm(_positions(cid, cubes) - start, axis=1) > 0.01).sum())
 
 
+def resting(cid: int, steps: int, repeats: int):
+    """(plain, plugin, plain plus one base read) CPU seconds per step, resting r2d2."""
+    def world():
+        p.resetSimulation(physicsClientId=cid)
+        p.setAdditionalSearchPath(pybullet_data.getDataPath())
+        p.setGravity(0, 0, -9.8, physicsClientId=cid)
+        p.setTimeStep(DT, physicsClientId=cid)
+        p.loadURDF("plane.urdf", physicsClientId=cid)
+        robot = p.loadURDF("r2d2.urdf", [0, 0, 0.5], physicsClientId=cid)
+        for _ in range(240):
+            p.stepSimulation(physicsClientId=cid)
+        return robot
+
+    def plain_read(robot):
+        p.stepSimulation(physicsClientId=cid)
+        p.getBasePositionAndOrientation(robot, physicsClientId=cid)
+
+    best = [np.inf] * 3
+    for _ in range(repeats):
+        for k in range(3):
+            robot = world()
+            ccd = BoxCCD(cid) if k == 1 else None
+            step = ccd.step if ccd else (lambda: p.stepSimulation(physicsClientId=cid)) if k == 0 else (
+                lambda: plain_read(robot))
+            t0 = time.process_time()
+            for _ in range(steps):
+                step()
+            best[k] = min(best[k], (time.process_time() - t0) / steps)
+    return best
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--seeds", type=int, default=20)
@@ -146,6 +184,11 @@ def main():
         name = m if isinstance(m, str) else f"plain, numSubSteps {m}"
         print(f"| {name} | {best[m] / best['plain']:.2f}x | {losses[m]} |")
     print(f"(plain: {1e6 * best['plain']:.0f} us a step on this machine)")
+    plain, plugin, read = resting(cid, 4 * args.steps, args.repeats)
+    print(f"\n3. r2d2 resting on plane.urdf, {4 * args.steps} steps, min of {args.repeats} runs (CPU time)")
+    print("| plugin, x plain | plain + one read of the robot, x plain | plugin's own share of a plain step |")
+    print("|---|---|---|")
+    print(f"| {plugin / plain:.2f} | {read / plain:.2f} | {(plugin - read) / plain:.2f} |")
     p.disconnect(cid)
 
 
