@@ -378,8 +378,9 @@ def test_filtered_pair_is_not_swept(cid):
 
 
 def test_articulated_link_is_swept_and_its_free_partner_rewound(cid):
-    """A box on a fast revolute link strikes a free cube: the event names the link; the
-    cube, not the arm, is rewound."""
+    """A box on a fast revolute link strikes a free cube: the event names the link, and
+    the pair is acted on (the arm stopped at the strike, then the cube pushed ahead of
+    the link: tests/test_articulated.py)."""
     reset(cid)
     arm_col = p.createCollisionShape(p.GEOM_BOX, halfExtents=[0.5, 0.01, 0.05], collisionFramePosition=[0.5, 0, 0],
                                      physicsClientId=cid)
