@@ -5,6 +5,7 @@ import sys
 # package under test is the installed one (pytest runs with --import-mode=importlib).
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
+import pytest
 from hypothesis import HealthCheck, settings
 
 # Deterministic: the same examples on every run and machine (CI reproducible).
@@ -13,3 +14,16 @@ settings.register_profile(
     suppress_health_check=[HealthCheck.too_slow],
 )
 settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "deterministic"))
+
+
+@pytest.fixture(scope="module")
+def cid():
+    """A pybullet DIRECT client for one test module, with pybullet_data on its search path
+    (pybullet is imported here, not at the top: the solver's tests run without it)."""
+    import pybullet as p
+    import pybullet_data
+
+    c = p.connect(p.DIRECT)
+    p.setAdditionalSearchPath(pybullet_data.getDataPath(), physicsClientId=c)
+    yield c
+    p.disconnect(c)

@@ -7,21 +7,12 @@ from __future__ import annotations
 
 import numpy as np
 import pybullet as p
-import pybullet_data
 import pytest
 
 import bullet_boxccd  # noqa: F401  (imported before the worlds are built: it sees their flags)
 from bullet_boxccd import BoxCCD
 
 PENETRATION = 2e-7
-
-
-@pytest.fixture(scope="module")
-def cid():
-    c = p.connect(p.DIRECT)
-    p.setAdditionalSearchPath(pybullet_data.getDataPath(), physicsClientId=c)
-    yield c
-    p.disconnect(c)
 
 
 def _world(cid, dt=1 / 240, gravity=0.0):

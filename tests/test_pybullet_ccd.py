@@ -16,13 +16,6 @@ from bullet_boxccd.motion import quat_to_matrix
 DT = 1 / 240
 
 
-@pytest.fixture(scope="module")
-def cid():
-    c = p.connect(p.DIRECT)
-    yield c
-    p.disconnect(c)
-
-
 def reset(cid, gravity=0.0):
     p.resetSimulation(physicsClientId=cid)
     p.setTimeStep(DT, physicsClientId=cid)
