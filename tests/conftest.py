@@ -104,3 +104,16 @@ def pytest_sessionfinish(session):
     if path:
         with open(path, "w") as f:
             f.writelines(json.dumps(r) + "\n" for r in _report)
+
+
+@pytest.fixture(scope="module")
+def cid():
+    """A pybullet DIRECT client for one test module, with pybullet_data on its search path
+    (pybullet is imported here, not at the top: the solver's tests run without it)."""
+    import pybullet as p
+    import pybullet_data
+
+    c = p.connect(p.DIRECT)
+    p.setAdditionalSearchPath(pybullet_data.getDataPath(), physicsClientId=c)
+    yield c
+    p.disconnect(c)

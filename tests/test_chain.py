@@ -14,7 +14,6 @@ from __future__ import annotations
 
 import numpy as np
 import pybullet as p
-import pybullet_data
 import pytest
 from oracle import SIGNS, sat_gap
 from scipy.spatial.transform import Rotation
@@ -27,14 +26,6 @@ FIT_TOLERANCE = 0.05
 Q_SIZE = {0: 1, 1: 1, 2: 4, 4: 0}
 QDOT_SIZE = {0: 1, 1: 1, 2: 3, 4: 0}
 URDFS = ["r2d2.urdf", "cartpole.urdf", "kuka_iiwa/model.urdf", "humanoid/humanoid.urdf"]
-
-
-@pytest.fixture(scope="module")
-def cid():
-    c = p.connect(p.DIRECT)
-    p.setAdditionalSearchPath(pybullet_data.getDataPath(), physicsClientId=c)
-    yield c
-    p.disconnect(c)
 
 
 def random_quat(rng, n=None):

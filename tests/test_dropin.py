@@ -25,13 +25,6 @@ DT = 1 / 240
 CUBE_SMALL = os.path.join(pybullet_data.getDataPath(), "cube_small.urdf")
 
 
-@pytest.fixture(scope="module")
-def cid():
-    c = p.connect(p.DIRECT)
-    yield c
-    p.disconnect(c)
-
-
 def reset(cid, gravity=0.0):
     p.resetSimulation(physicsClientId=cid)
     p.setTimeStep(DT, physicsClientId=cid)

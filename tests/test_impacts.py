@@ -20,13 +20,6 @@ DT = 1 / 240
 DATA = pybullet_data.getDataPath()
 
 
-@pytest.fixture(scope="module")
-def cid():
-    c = p.connect(p.DIRECT)
-    yield c
-    p.disconnect(c)
-
-
 def reset(cid, gravity, dt=DT):
     p.resetSimulation(physicsClientId=cid)
     p.setTimeStep(dt, physicsClientId=cid)

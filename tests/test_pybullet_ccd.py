@@ -16,13 +16,6 @@ from bullet_boxccd.motion import quat_to_matrix
 DT = 1 / 240
 
 
-@pytest.fixture(scope="module")
-def cid():
-    c = p.connect(p.DIRECT)
-    yield c
-    p.disconnect(c)
-
-
 def reset(cid, gravity=0.0):
     p.resetSimulation(physicsClientId=cid)
     p.setTimeStep(DT, physicsClientId=cid)
@@ -381,8 +374,9 @@ def test_filtered_pair_is_not_swept(cid):
 
 
 def test_articulated_link_is_swept_and_its_free_partner_rewound(cid):
-    """A box on a fast revolute link strikes a free cube: the event names the link; the
-    cube, not the arm, is rewound."""
+    """A box on a fast revolute link strikes a free cube: the event names the link, and
+    the pair is acted on (the arm stopped at the strike, then the cube pushed ahead of
+    the link: tests/test_articulated.py)."""
     reset(cid)
     arm_col = p.createCollisionShape(p.GEOM_BOX, halfExtents=[0.5, 0.01, 0.05], collisionFramePosition=[0.5, 0, 0],
                                      physicsClientId=cid)

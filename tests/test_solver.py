@@ -438,6 +438,25 @@ def test_step_path_queries_say_a_row_is_not_finite():
     assert c.outcome is Outcome.INITIAL and c.feature.kind in ("OV", "VO", "EE")
 
 
+def test_link_path_contact_says_what_happened():
+    """paths_contact (the first touch on any two box paths, with its contact) returns
+    None only when the boxes stay apart; otherwise a Contact whose outcome says what
+    happened: a slide into a cube is a HIT at the closed-form time, a pair touching at
+    the start INITIAL (a row path with NaN is refused when it is built)."""
+    tol = Tolerances()._core
+    still = _core.RowBoxPath(_path_row((0.0, 0.0, 0.0)))
+    moving = _path_row((0.5, 0.0, 0.0))
+    moving[16] = -3.5  # from x = 4 to 0.5 over the step: the faces meet at x = 1, tau = 3 / 3.5
+    t, _, c = _core.paths_contact(still, _core.RowBoxPath(moving), 0.05, tol)
+    assert c.outcome is Outcome.HIT and c.feature.kind in ("OV", "VO", "EE")
+    assert t == c.t and abs(t - 3 / 3.5) < 1e-9 and t <= 3 / 3.5
+    assert _core.paths_first_touch(still, _core.RowBoxPath(moving), 0.05, tol, state=True)[:2] == (t, int(Outcome.HIT))
+    t, _, c = _core.paths_contact(still, _core.RowBoxPath(_path_row((0.5, 0.0, 0.0))), 0.05, tol)
+    assert t == 0.0 and c.outcome is Outcome.INITIAL and c.initial
+    t, _, c = _core.paths_contact(still, _core.RowBoxPath(_path_row((5.0, 0.0, 0.0))), 0.05, tol)
+    assert np.isnan(t) and c is None
+
+
 # ------------------------------------------------------------------ tolerances
 def test_tolerance_defaults_are_the_cores():
     core, py = _core.Tolerances(), Tolerances()

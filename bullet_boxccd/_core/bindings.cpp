@@ -21,6 +21,7 @@
 #include <vector>
 
 #include "box_ccd.hpp"
+#include "box_path.hpp"
 #include "step_path.hpp"
 
 namespace nb = nanobind;
@@ -779,6 +780,24 @@ double py_refine_crossing(const In<-1> &coeffs, double lo, double hi, int max_se
     return refine_crossing(poly_of(coeffs), lo, hi, max_secant);
 }
 
+// (t, solves, Contact or None) of paths_first_touch: the contact on the fitted
+// motions (None: apart). Its outcome says what happened (a degraded one is early
+// and not proven); a touch where no facet was found (at the start, or on a piece
+// too fast to fit) has feature None and a NaN point and normal.
+nb::tuple py_paths_contact(const BoxPath &a, const BoxPath &b, double fit_tolerance, const Tolerances &tol) {
+    if (!(fit_tolerance > 0.0))
+        throw nb::value_error(("fit_tolerance must be > 0, got " + std::to_string(fit_tolerance)).c_str());
+    long solves = 0;
+    Hit h;
+    Outcome outcome;
+    double t;
+    {
+        nb::gil_scoped_release release;
+        t = first_touch(a, b, fit_tolerance, tol, solves, outcome, std::numeric_limits<double>::quiet_NaN(), &h);
+    }
+    return nb::make_tuple(t, solves, hit_result(h));
+}
+
 // ---------------------------------------------------------------- hooks
 // A Python callable as a builtin function (builtin_function_or_method), for the
 // plugin's wrappers of pybullet's functions: pybullet_utils.bullet_client passes
@@ -902,6 +921,8 @@ NB_MODULE(_core, m) {
     m.def("refine_crossing", &py_refine_crossing, nb::arg("coeffs"), nb::arg("lo"), nb::arg("hi"),
           nb::arg("max_secant"), "poly.hpp's bracketed crossing with at most max_secant Illinois steps, for tests.");
     m.attr("kRootWidth") = kRootWidth;
+    m.def("paths_contact", &py_paths_contact, nb::arg("a"), nb::arg("b"), nb::arg("fit_tolerance"),
+          nb::arg("tolerances"));
     m.def("as_builtin", &as_builtin, nb::arg("fn"), nb::arg("name"), nb::arg("doc"));
     bind_chain(m);
 }

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <vector>
 
 namespace boxccd {
 
@@ -45,13 +46,32 @@ double RowBoxPath::fit(double lo, double hi, double *coeffs) const {
 
 int RowBoxPath::pieces(double fit_tolerance) const { return fit_pieces(row_, fit_tolerance); }
 
+double RowBoxPath::travel(double lo, double hi) const {
+    // Linear translation and a turn about the frame's origin at a constant rate:
+    // a point's track over the piece is at most (hi - lo) (|d| + angle r) long.
+    return 0.5 * (hi - lo) * (norm3(row_ + PathRow::kDisplacement) + std::fabs(row_[PathRow::kAngle]) * reach_);
+}
+
 double pose_depth(const double *X_WA, const double *ha, const double *X_WB, const double *hb) {
+    return pose_separation(X_WA, ha, X_WB, hb, nullptr);
+}
+
+double pose_separation(const double *X_WA, const double *ha, const double *X_WB, const double *hb, double *axis) {
     const double d[3] = {X_WB[3] - X_WA[3], X_WB[7] - X_WA[7], X_WB[11] - X_WA[11]};
     double depth = std::numeric_limits<double>::infinity();
+    const auto consider = [&](const double *u) {
+        const double o = overlap_on(u, X_WA, ha, X_WB, hb, d);
+        if (!(o < depth)) return;
+        depth = o;
+        if (axis) {
+            const double sgn = u[0] * d[0] + u[1] * d[1] + u[2] * d[2] < 0.0 ? -1.0 : 1.0;
+            for (int k = 0; k < 3; ++k) axis[k] = sgn * u[k];
+        }
+    };
     for (int i = 0; i < 3; ++i) {  // face normals (rigid boxes: the axes are orthonormal)
         const double ua[3] = {X_WA[i], X_WA[4 + i], X_WA[8 + i]}, ub[3] = {X_WB[i], X_WB[4 + i], X_WB[8 + i]};
-        depth = std::fmin(depth, overlap_on(ua, X_WA, ha, X_WB, hb, d));
-        depth = std::fmin(depth, overlap_on(ub, X_WA, ha, X_WB, hb, d));
+        consider(ua);
+        consider(ub);
     }
     for (int i = 0; i < 3; ++i)
         for (int j = 0; j < 3; ++j) {
@@ -60,7 +80,7 @@ double pose_depth(const double *X_WA, const double *ha, const double *X_WB, cons
             const double n = norm3(u);
             if (!(n > kParallel)) continue;  // parallel edges give no axis (unit a, b: |a x b| is the sine)
             for (double &x : u) x /= n;
-            depth = std::fmin(depth, overlap_on(u, X_WA, ha, X_WB, hb, d));
+            consider(u);
         }
     return depth;
 }
@@ -72,15 +92,75 @@ double path_depth(const BoxPath &a, const BoxPath &b, double tau) {
     return pose_depth(X_WA, a.half_extents(), X_WB, b.half_extents());
 }
 
+double first_depth(const BoxPath &a, const BoxPath &b, double from, double target, int budget) {
+    if (!a.finite() || !b.finite() || !(from >= 0.0 && from <= 1.0) || std::isnan(target)) return kNaN;
+    if (path_depth(a, b, from) >= target) return from;
+    // Depth-first over halved pieces, earliest first: a piece is ruled out when the
+    // depth at its middle plus both boxes' travel over it stays below target. Once a
+    // piece no wider than kNarrow reaches the target at its middle, the crossing
+    // between its start and its middle is found by bisection (a dip and rise inside
+    // so narrow a piece is not looked for).
+    constexpr double kNarrow = 1.0 / 256.0, kWidth = 1e-13;
+    struct Piece {
+        double lo, hi;
+    };
+    std::vector<Piece> stack{{from, 1.0}};
+    while (!stack.empty()) {
+        const Piece p = stack.back();
+        stack.pop_back();
+        if (--budget < 0) return p.lo;
+        const double mid = 0.5 * (p.lo + p.hi);
+        const double depth = path_depth(a, b, mid);
+        if (depth >= target && p.hi - p.lo <= kNarrow) {
+            double lo = p.lo, hi = mid;
+            while (hi - lo > kWidth) {
+                const double m = 0.5 * (lo + hi);
+                if (m <= lo || m >= hi) break;
+                (path_depth(a, b, m) >= target ? hi : lo) = m;
+            }
+            return hi;
+        }
+        if (p.hi - p.lo <= kWidth) continue;
+        if (depth + a.travel(p.lo, p.hi) + b.travel(p.lo, p.hi) < target) continue;
+        stack.push_back({mid, p.hi});
+        stack.push_back({p.lo, mid});
+    }
+    return kNaN;
+}
+
+void path_bounds(const BoxPath &path, int n, double *lo, double *hi) {
+    const double *h = path.half_extents();
+    for (int i = 0; i < 3; ++i) {
+        lo[i] = kInf;
+        hi[i] = -kInf;
+    }
+    for (int k = 0; k < n; ++k) {
+        const double a = double(k) / n, b = double(k + 1) / n;
+        double X[16];
+        path.pose(0.5 * (a + b), X);
+        const double grow = path.travel(a, b);
+        for (int i = 0; i < 3; ++i) {
+            const double e = std::fabs(X[4 * i]) * h[0] + std::fabs(X[4 * i + 1]) * h[1] + std::fabs(X[4 * i + 2]) * h[2];
+            lo[i] = std::fmin(lo[i], X[4 * i + 3] - e - grow);
+            hi[i] = std::fmax(hi[i], X[4 * i + 3] + e + grow);
+        }
+    }
+}
+
 double first_touch(const BoxPath &a, const BoxPath &b, double fit_tolerance, const Tolerances &tol, long &solves,
-                   Outcome &outcome, double depth0) {
+                   Outcome &outcome, double depth0, Hit *contact) {
     outcome = Outcome::Separated;
+    if (contact) *contact = Hit{};
     if (!a.finite() || !b.finite()) {
         outcome = Outcome::NonFinite;
+        if (contact) contact->outcome = outcome;
         return kNaN;
     }
     if (std::isnan(depth0)) depth0 = path_depth(a, b, 0.0);
-    if (depth0 >= 0.0) {  // touching at the start: the fitted motions, exact there, touch too
+    // Touching at the start: the fitted motions, exact there, touch too (the first
+    // piece's solve, asked for the contact, describes it).
+    const bool at_start = depth0 >= 0.0;
+    if (at_start && !contact) {
         outcome = Outcome::Initial;
         return 0.0;
     }
@@ -92,7 +172,11 @@ double first_touch(const BoxPath &a, const BoxPath &b, double fit_tolerance, con
         // No proven fit (too fast even for 64 pieces, or a fit overflowed): early, never late.
         bool fitted = grow_a < kInf && grow_b < kInf;
         for (int i = 0; i < 48; ++i) fitted = fitted && std::isfinite(coeffs_a[i]) && std::isfinite(coeffs_b[i]);
-        if (!fitted) return lo;
+        if (!fitted) {  // a cap reached (kMaxFitPieces): early, not proven a contact
+            outcome = at_start ? Outcome::Initial : Outcome::StepCap;
+            if (contact) contact->outcome = outcome, contact->t = lo, contact->s = at_start ? 0.0 : kNaN;
+            return lo;
+        }
         double lo_a[3], hi_a[3], lo_b[3], hi_b[3];
         for (int i = 0; i < 3; ++i) {
             hi_a[i] = a.half_extents()[i] + grow_a;
@@ -101,11 +185,16 @@ double first_touch(const BoxPath &a, const BoxPath &b, double fit_tolerance, con
             lo_b[i] = -hi_b[i];
         }
         Query query({lo_a, hi_a, coeffs_a}, {lo_b, hi_b, coeffs_b}, 0.0, 1.0, tol);
-        const Hit h = query.solve(false);
+        Hit h = query.solve(contact != nullptr);
         ++solves;
-        if (h.contact()) {
-            outcome = h.outcome;  // a degraded one (early, not proven) stays what it is
-            return lo + h.t * (hi - lo);
+        if (h.contact() || at_start) {
+            // A degraded outcome (early, not proven) stays what it is; a touch at the
+            // start is one whatever the solve says.
+            if (at_start) h.outcome = Outcome::Initial, h.s = 0.0;
+            h.t = at_start ? 0.0 : lo + h.t * (hi - lo);
+            outcome = h.outcome;
+            if (contact) *contact = h;
+            return h.t;
         }
     }
     return kNaN;

@@ -36,6 +36,9 @@ class BoxPath {
     virtual int pieces(double fit_tolerance) const = 0;
     // Whether every number the path holds is finite (one that is not has no touch).
     virtual bool finite() const = 0;
+    // How far any point of the box can be, over [lo, hi], from where it is at
+    // (lo + hi) / 2 (a length, world): what first_depth's search prunes with.
+    virtual double travel(double lo, double hi) const = 0;
 };
 
 // A box on a free frame's path row (PathRow, 42 doubles, copied).
@@ -47,6 +50,7 @@ class RowBoxPath : public BoxPath {
     double fit(double lo, double hi, double *coeffs) const override;
     int pieces(double fit_tolerance) const override;
     bool finite() const override { return finite_; }
+    double travel(double lo, double hi) const override;
     const double *row() const { return row_; }
 
   private:
@@ -63,6 +67,22 @@ double pose_depth(const double *X_WA, const double *ha, const double *X_WB, cons
 // pose_depth of two paths' boxes at tau.
 double path_depth(const BoxPath &a, const BoxPath &b, double tau);
 
+// pose_depth, and the axis that gives it (unit, oriented from A towards B).
+double pose_separation(const double *X_WA, const double *ha, const double *X_WB, const double *hb, double *axis);
+
+// The first tau in [from, 1] at which the boxes overlap by at least target
+// (path_depth >= target), to about 1e-13 of the step; NaN if they never do. The
+// overlap depth moves by at most the sum of the boxes' points' travel, so a piece
+// whose middle is too shallow by more than that is skipped, and the others are
+// halved, earliest first, down to 1/256 of the step, where the crossing is
+// bisected (at most `budget` pieces; past it the start of the first piece not
+// ruled out is returned: early, never late).
+double first_depth(const BoxPath &a, const BoxPath &b, double from, double target, int budget = 4096);
+
+// Bounds (lo, hi: world) of the box over the whole step: its place at the middle
+// of each of n equal pieces, grown by the travel over that piece.
+void path_bounds(const BoxPath &path, int n, double *lo, double *hi);
+
 // The first touch of two boxes on their fitted motions: the step is cut into
 // the larger of the two paths' pieces, and on each piece, in order, both
 // fitted motions carry their boxes grown by the fit's growth, so the answer is
@@ -71,9 +91,14 @@ double path_depth(const BoxPath &a, const BoxPath &b, double tau);
 // (motion too fast to fit even in 64 pieces) is reported as touching at its
 // start (early, never late). depth0: path_depth at 0 if known (NaN: computed);
 // touching then is a touch at 0. `solves` counts the solver calls. `outcome` says
-// what happened (Separated, NonFinite, Initial for a touch at 0, or the solver's
-// outcome on the touching piece: a degraded one is early and not proven).
+// what happened (Separated, NonFinite, Initial for a touch at 0, StepCap for a piece
+// no fit up to kMaxFitPieces proves, or the solver's outcome on the touching piece:
+// a degraded one is early and not proven). With `contact`, the solver's contact
+// (point, normal, features on the grown boxes' fitted motions; t in step fractions)
+// is written there (outcome Separated when apart; a touch at the start or on an
+// unfitted piece may have no facet).
 double first_touch(const BoxPath &a, const BoxPath &b, double fit_tolerance, const Tolerances &tol, long &solves,
-                   Outcome &outcome, double depth0 = std::numeric_limits<double>::quiet_NaN());
+                   Outcome &outcome, double depth0 = std::numeric_limits<double>::quiet_NaN(),
+                   Hit *contact = nullptr);
 
 }  // namespace boxccd

@@ -533,6 +533,8 @@ double LinkBoxPath::fit(double lo, double hi, double *coeffs) const {
     return g.length;
 }
 
+double LinkBoxPath::travel(double lo, double hi) const { return motion_->fit_bound(link_, lo, hi).sweep(reach_); }
+
 int LinkBoxPath::pieces(double fit_tolerance) const {
     // The whole step's bound on the third derivative holds on every piece, and the
     // error shrinks as the cube of the piece's length: an upper estimate. Each piece's

@@ -152,6 +152,7 @@ class LinkBoxPath : public BoxPath {
     double fit(double lo, double hi, double *coeffs) const override;
     int pieces(double fit_tolerance) const override;
     bool finite() const override { return true; }  // checked when built
+    double travel(double lo, double hi) const override;
 
   private:
     struct Growth {

@@ -123,6 +123,44 @@ Out<7> base_pose(const ChainMotion &motion, double tau) {
     return a;
 }
 
+// (n, 13) frame-state rows of the given links (-1: the base): the pose after the
+// step, then the velocities (v, w) that carry the pose before the step to it in dt
+// by the free-frame rule (linear; about a fixed axis at a constant rate): the
+// chord of the link's step, for turns below Bullet's pi/4 clamp.
+Out<-1, 13> frame_rows(const ChainMotion &motion, const Ints &links, double dt) {
+    expect(links, "links", {-1});
+    if (!(dt > 0.0) || !std::isfinite(dt)) throw nb::value_error("dt must be finite and > 0");
+    const size_t n = links.shape(0);
+    for (size_t k = 0; k < n; ++k)
+        if (links.data()[k] != -1) check_link(motion.chain(), int(links.data()[k]));
+    double *out;
+    auto a = new_array<-1, 13>({n, 13}, out);
+    for (size_t k = 0; k < n; ++k) {
+        const int link = int(links.data()[k]);
+        double p0[7], *p1 = out + 13 * k;
+        if (link == -1) {
+            motion.base_pose(0.0, p0);
+            motion.base_pose(1.0, p1);
+        } else {
+            motion.link_pose(link, 0.0, p0);
+            motion.link_pose(link, 1.0, p1);
+        }
+        double *v = p1 + 7, *w = p1 + 10;
+        for (int i = 0; i < 3; ++i) v[i] = (p1[i] - p0[i]) / dt;
+        // q1 q0^-1 (x y z w): the turn from the pose before to the pose after.
+        const double *a1 = p1 + 3, *b = p0 + 3;
+        double x[3] = {b[3] * a1[0] - a1[3] * b[0] - (a1[1] * b[2] - a1[2] * b[1]),
+                       b[3] * a1[1] - a1[3] * b[1] - (a1[2] * b[0] - a1[0] * b[2]),
+                       b[3] * a1[2] - a1[3] * b[2] - (a1[0] * b[1] - a1[1] * b[0])};
+        const double c = a1[3] * b[3] + a1[0] * b[0] + a1[1] * b[1] + a1[2] * b[2];
+        const double sgn = c < 0.0 ? -1.0 : 1.0;
+        const double sn = std::sqrt(x[0] * x[0] + x[1] * x[1] + x[2] * x[2]);
+        const double scale = sn > 0.0 ? sgn * 2.0 * std::atan2(sn, std::fabs(c)) / (sn * dt) : 0.0;
+        for (int i = 0; i < 3; ++i) w[i] = x[i] * scale;
+    }
+    return a;
+}
+
 Out<-1> joint_positions(const ChainMotion &motion, double tau) {
     check_tau(tau);
     double *out;
@@ -231,6 +269,33 @@ double paths_depth(const BoxPath &a, const BoxPath &b, double tau) {
     return path_depth(a, b, tau);
 }
 
+// (depth, axis (3,)): pose_separation of the two boxes at tau.
+nb::tuple paths_separation(const BoxPath &a, const BoxPath &b, double tau) {
+    check_tau(tau);
+    double X_WA[16], X_WB[16], *axis;
+    auto out = new_array<3>({3}, axis);
+    a.pose(tau, X_WA);
+    b.pose(tau, X_WB);
+    const double depth = pose_separation(X_WA, a.half_extents(), X_WB, b.half_extents(), axis);
+    return nb::make_tuple(depth, out);
+}
+
+double paths_first_depth(const BoxPath &a, const BoxPath &b, double from, double target) {
+    check_tau(from);
+    if (!std::isfinite(target)) throw nb::value_error("target must be finite");
+    nb::gil_scoped_release release;
+    return first_depth(a, b, from, target);
+}
+
+Out<6> bounds_of(const BoxPath &path, int pieces) {
+    if (pieces < 1 || pieces > 4096)
+        throw nb::value_error(("pieces must be in [1, 4096], got " + std::to_string(pieces)).c_str());
+    double *out;
+    auto a = new_array<6>({6}, out);
+    path_bounds(path, pieces, out, out + 3);
+    return a;
+}
+
 }  // namespace
 
 void bind_chain(nb::module_ &m) {
@@ -256,6 +321,8 @@ void bind_chain(nb::module_ &m) {
         .def("link_pose", &link_pose, nb::arg("link"), nb::arg("tau"))
         .def("link_poses", &link_poses, nb::arg("tau"))
         .def("joint_positions", &joint_positions, nb::arg("tau"))
+        .def("frame_rows", &frame_rows, nb::arg("links"), nb::arg("dt"),
+             "(n, 13) the links' (-1: base) poses after the step and the chords of their steps as velocities.")
         .def("fit", &link_fit, nb::arg("link"), nb::arg("lo"), nb::arg("hi"), nb::arg("r") = 0.0)
         .def("fit_bound", &link_fit_bound, nb::arg("link"), nb::arg("lo"), nb::arg("hi"), nb::arg("r") = 0.0);
     nb::class_<BoxPath>(m, "BoxPath", "A box on a within-step path (box_path.hpp); see RowBoxPath, LinkBoxPath.")
@@ -263,6 +330,9 @@ void bind_chain(nb::module_ &m) {
         .def("poses", &path_poses, nb::arg("taus"))
         .def("fit", &path_fit, nb::arg("lo"), nb::arg("hi"))
         .def("pieces", &path_pieces, nb::arg("fit_tolerance"))
+        .def("travel", [](const BoxPath &p, double lo, double hi) { check_piece(lo, hi); return p.travel(lo, hi); },
+             nb::arg("lo"), nb::arg("hi"), "How far any point of the box can be, over [lo, hi], from its place at the middle.")
+        .def("bounds", &bounds_of, nb::arg("pieces") = 4, "(6,) world bounds (lo, hi) of the box over the step.")
         .def_prop_ro("half_extents", &path_half_extents, nb::rv_policy::move);
     nb::class_<RowBoxPath, BoxPath>(m, "RowBoxPath", "A box on a free frame's path row.")
         .def("__init__", [](RowBoxPath *self, const Doubles &row) { new (self) RowBoxPath(make_row_box(row)); },
@@ -282,4 +352,6 @@ void bind_chain(nb::module_ &m) {
     m.def("paths_first_touch", &paths_first_touch, nb::arg("a"), nb::arg("b"), nb::arg("fit_tolerance"),
           nb::arg("tolerances"), nb::arg("state") = false);
     m.def("paths_depth", &paths_depth, nb::arg("a"), nb::arg("b"), nb::arg("tau"));
+    m.def("paths_separation", &paths_separation, nb::arg("a"), nb::arg("b"), nb::arg("tau"));
+    m.def("paths_first_depth", &paths_first_depth, nb::arg("a"), nb::arg("b"), nb::arg("from_tau"), nb::arg("target"));
 }

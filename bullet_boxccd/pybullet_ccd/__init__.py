@@ -38,6 +38,7 @@ import numpy as np
 from .._arrays import as_float_array
 from ..solver import DEFAULT_TOLERANCES, InvalidInputError, Tolerances
 from ._hooks import last_serial, raw, replay_impulses
+from .articulated import Articulated
 from .events import BoxCCDWarning, CCDEvent, CCDStats
 from .impact import Impacts
 from .state import FrameState
@@ -70,8 +71,8 @@ class BoxCCD:
     exact_time : bool
         Instead of rewinding only the bodies that touched, stop every free body at the
         step's earliest contact and simulate the rest of the step from there (up to
-        ``max_partial_steps`` times a step). Articulated and kinematic bodies are not
-        stopped.
+        ``max_partial_steps`` times a step). Articulated bodies are stopped there too
+        (at their own contacts too, which do not stop the world); kinematic bodies are not.
     max_partial_steps : int
         At least 0. Default 8.
     tolerances : Tolerances
@@ -116,7 +117,10 @@ class BoxCCD:
             self.stats.rediscoveries += 1
             t = self.world.tables
             self._sweep_reach = self.sweep_threshold * 2.0 * t.half.min(axis=1) if len(t.half) else np.zeros(0)
-            self._state = FrameState(self.cid, t, self._sweep_reach)
+            self._chains = Articulated(self.cid, t, self.world.self_collision(), self._warn)
+            rigid_reach = self._sweep_reach.copy()
+            rigid_reach[self._chains.boxes] = math.inf  # swept on their own paths (articulated)
+            self._state = FrameState(self.cid, t, rigid_reach, self._chains.frames)
             self.stats.tracked_boxes = len(t.half)
             small = t.half.min() if len(t.half) else math.inf
             if self.penetration >= 0.01 * small:
@@ -161,7 +165,7 @@ class BoxCCD:
             st = self._state
             fast = st.sweeper.fast(self._dt, st.moving, st.twists())
             self.stats.steps += 1
-            if fast is None:
+            if fast is None and not self._chains.bodies:
                 return []
             events = self._quiet_sweep(fast, time.perf_counter())
         else:
@@ -175,16 +179,28 @@ class BoxCCD:
         """The sweep of a step taken in a world where nothing changed (no user move, no
         kinematic velocity, one substep): what ``_step`` does then, without its checks."""
         if self.exact_time:
-            return self._step(self._dt, 0.0, self._dt, fast=fast)
+            return self._step(self._dt, 0.0, self._dt, stepped=True, fast=fast)
         st, t, dt = self._state, self.world.tables, self._dt
         st.begin_kinematic((), ())
-        sw = sweep(self.cid, t, st, dt, self.fit_tolerance, self.tolerances, self.penetration, self.stats, t0, fast)
-        if sw is None:
-            return []
-        t3 = time.perf_counter()
-        events, _ = self.impacts.resolve(sw, None, t, st, dt, set(), self._gravity)
-        self.stats.seconds["rewind"] += time.perf_counter() - t3
+        self._chains.read(dt, st)
+        sw = None if fast is None else sweep(self.cid, t, st, dt, self.fit_tolerance, self.tolerances,
+                                             self.penetration, self.stats, t0, fast)
+        events, _, pushed = self._chains_sweep(dt)
+        sw = _without(sw, pushed, t)
+        if sw is not None:
+            t3 = time.perf_counter()
+            events += self.impacts.resolve(sw, None, t, st, dt, set(), self._gravity)[0]
+            self.stats.seconds["rewind"] += time.perf_counter() - t3
         return events
+
+    def _chains_sweep(self, h):
+        if not self._chains.bodies:
+            return [], {}, set()
+        t0 = time.perf_counter()
+        out = self._chains.sweep(h, self._state, self._sweep_reach, self.fit_tolerance, self.tolerances,
+                                 self.penetration, self.stats)
+        self.stats.seconds["solve"] += time.perf_counter() - t0
+        return out
 
     def _full_step(self):
         self._sync()
@@ -214,22 +230,22 @@ class BoxCCD:
         finally:
             raw.setPhysicsEngineParameter(fixedTimeStep=dt, numSubSteps=n, physicsClientId=self.cid)
 
-    def _step(self, h, offset, dt, fast=None):
+    def _step(self, h, offset, dt, stepped=False, fast=None):
         """One stepSimulation of h seconds (``offset`` into the user's step of dt), swept;
         in exact-time mode, again from the earliest contact until the step is done.
-        ``fast``: pybullet took the step already, the velocities are read, and these are
-        the fast boxes (``Sweeper.fast``)."""
+        ``stepped``: pybullet took the step already, the velocities are read, and ``fast``
+        are the fast boxes (``Sweeper.fast``; None: none)."""
         moved_static, with_velocity, user_moved = self._user_moves()
         t_start, elapsed, events = time.perf_counter(), 0.0, []
         try:
             for _ in range(1 + (self.max_partial_steps if self.exact_time else 0)):
                 self._state.begin_kinematic(moved_static, with_velocity)
-                if fast is None:
+                if not stepped:
                     raw.stepSimulation(physicsClientId=self.cid)
                 t_sim = time.perf_counter()
                 self.stats.seconds["step"] += t_sim - t_start
-                found, tau = self._sweep(h - elapsed, t_sim, user_moved, fast)
-                fast = None
+                found, tau = self._sweep(h - elapsed, t_sim, user_moved, stepped, fast)
+                stepped, fast = False, None
                 if found:
                     events += [_shifted(e, offset + elapsed, dt) for e in found]
                 if not self.exact_time or tau >= 1.0:
@@ -247,22 +263,30 @@ class BoxCCD:
                 raw.setPhysicsEngineParameter(fixedTimeStep=h, physicsClientId=self.cid)
         return events
 
-    def _sweep(self, h, t0, user_moved, fast=None):
+    def _sweep(self, h, t0, user_moved, stepped=False, fast=None):
         t = self.world.tables
         if not len(t.half):
             return [], 1.0
         st = self._state
-        if fast is None:
+        if not stepped:
             st.read_velocities()
+        self._chains.read(h, st)
         st.end_kinematic(h)
-        sw = sweep(self.cid, t, st, h, self.fit_tolerance, self.tolerances, self.penetration, self.stats, t0, fast)
+        sw = None if stepped and fast is None else sweep(self.cid, t, st, h, self.fit_tolerance, self.tolerances,
+                                                          self.penetration, self.stats, t0, fast)
         jw = jump_sweep(self.cid, t, st, h, self.fit_tolerance, self.tolerances, self.penetration, self.stats)
+        # Articulated bodies first, on Bullet's paths of everything (their stops change no
+        # free body's path); then the free bodies' contacts.
+        events, stopped, pushed = self._chains_sweep(h)
+        sw = _without(sw, pushed, t)
         if sw is None and jw is None:
-            return [], 1.0
+            return events, 1.0  # an articulated body's stop does not stop the world
         t3 = time.perf_counter()
-        events, tau = self.impacts.resolve(sw, jw, t, st, h, user_moved, self._gravity)
+        found, tau = self.impacts.resolve(sw, jw, t, st, h, user_moved, self._gravity)
+        if self.exact_time and tau < 1.0:
+            self._chains.stop_all(tau, stopped, st)
         self.stats.seconds["rewind"] += time.perf_counter() - t3
-        return events, tau
+        return events + found, tau
 
     # --------------------------------------------------------- declarations
     def register_box(self, body: int, link: int, half_extents, position=(0.0, 0.0, 0.0),
@@ -352,6 +376,16 @@ def _body_link(cid, body, link):
             -1 <= link < raw.getNumJoints(body, physicsClientId=cid)):
         raise InvalidInputError(f"link {link!r} is not a link of body {body} (-1 is the base)")
     return body, int(link)
+
+
+def _without(sw, frames, tables):
+    """The sweep without the contacts of ``frames`` (free boxes an articulated body's link
+    pushed: their paths are no longer Bullet's); None if none is left."""
+    if sw is None or not frames:
+        return sw
+    box_frame = tables.box_frame[sw.boxes]
+    sw.hits = [h for h in sw.hits if box_frame[h[0]] not in frames and box_frame[h[1]] not in frames]
+    return sw if sw.hits else None
 
 
 def _shifted(e: CCDEvent, elapsed: float, dt: float) -> CCDEvent:

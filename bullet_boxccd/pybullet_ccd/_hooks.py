@@ -103,6 +103,9 @@ class Journal:
     # index of the body in the function's result). See shapes.Shadow.
     shapes: dict = field(default_factory=dict)
     maximal: dict = field(default_factory=dict)
+    # Body -> the URDF_USE_SELF_COLLISION* bits it was loaded with (loadURDF, loadMJCF,
+    # createMultiBody flags): whether, and which, of its links collide with each other.
+    self_collision: dict = field(default_factory=dict)
 
     def clear(self):
         fresh = Journal()
@@ -214,9 +217,24 @@ def _remove_shape(args, kwargs, result):
     journal(_cid(args, kwargs, 1)).shapes.pop(_arg(args, kwargs, 0, "collisionShapeId"), None)
 
 
+def _note_self_collision(j, flags, result):
+    bits = int(flags or 0) & _SELF_COLLISION_BITS
+    for b in result if isinstance(result, (tuple, list)) else (result,):
+        if isinstance(b, int) and b >= 0:
+            j.self_collision.pop(b, None)
+            if bits & pybullet.URDF_USE_SELF_COLLISION:
+                j.self_collision[b] = bits
+
+
+_SELF_COLLISION_BITS = (pybullet.URDF_USE_SELF_COLLISION | pybullet.URDF_USE_SELF_COLLISION_INCLUDE_PARENT |
+                        pybullet.URDF_USE_SELF_COLLISION_EXCLUDE_ALL_PARENTS)
+
+
 def _create_multibody(args, kwargs, result):
     j = _on_create(_cid(args, kwargs, 20), result)
-    _note_maximal(j, "createMultiBody", _named(_CREATE_BODY, args, kwargs), result)
+    named = _named(_CREATE_BODY, args, kwargs)
+    _note_maximal(j, "createMultiBody", named, result)
+    _note_self_collision(j, named.get("flags"), result)
 
 
 def _load_urdf(args, kwargs, result):
@@ -226,6 +244,7 @@ def _load_urdf(args, kwargs, result):
     if path is not None:
         named["fileName"] = os.path.abspath(path)
     _note_maximal(j, "loadURDF", named, result)
+    _note_self_collision(j, named.get("flags"), result)
     _read_file_groups(j, result, path)
 
 
@@ -240,6 +259,7 @@ def _load_sdf(args, kwargs, result):
 
 def _load_mjcf(args, kwargs, result):
     j = _on_create(_cid(args, kwargs, 3), result)
+    _note_self_collision(j, _arg(args, kwargs, 1, "flags", 0), result)
     path = _resolve(j, _arg(args, kwargs, 0, "mjcfFileName"))
     text = _read_text(path)
     if text is None or re.search(r"\b(contype|conaffinity)\s*=", text):

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Optional
 
 import numpy as np
 
@@ -23,7 +24,8 @@ class CCDEvent:
     ``tau`` is the contact's fraction of the step (0 = start, 1 = end) and ``time``
     the same in seconds after the step started; ``point`` and ``normal`` (unit,
     from box A towards box B) are world coordinates at the first touch;
-    ``feature`` names the BMS plane; ``rewound`` says whether a body of the pair was
+    ``feature`` names the BMS plane (None where the search found none: a link box
+    touching at the start of the step, or on a piece too fast to fit); ``rewound`` says whether a body of the pair was
     put back at the contact (or, pushed by a kinematic body, ahead of it); False for a
     graze shallower than the rewind depth, or when neither body can be moved;
     ``initial`` marks a pair that already touched when the step began and pressed
@@ -38,7 +40,7 @@ class CCDEvent:
     time: float
     point: np.ndarray
     normal: np.ndarray
-    feature: Feature
+    feature: Optional[Feature]
     rewound: bool
     initial: bool
 

@@ -43,7 +43,7 @@ def _readers(cid, body, link):
 class FrameState:
     """The (F, 13) state of every frame after the current step, and the kinematic frames."""
 
-    def __init__(self, cid, tables, sweep_reach):
+    def __init__(self, cid, tables, sweep_reach, articulated=frozenset()):
         self.cid, self.tables = cid, tables
         f = tables.filters
         # The core's sweeper holds the box tables and the rows (``rows`` is a numpy view of
@@ -56,7 +56,9 @@ class FrameState:
         self._static = set(static)
         self.fresh = set()  # moving or kinematic frames whose poses in ``rows`` are this step's (read or set)
         self.read_poses(static)
-        self.moving = list(tables.moving)  # frames whose velocity is read at every step
+        # Frames whose velocity is read at every step (an articulated body's are read
+        # whole: articulated.py).
+        self.moving = [f for f in tables.moving if f not in articulated]
         self._moving_twists = [self._twist[f] for f in self.moving]
         self.with_velocity = set()  # static frames the user gave a velocity (Bullet moves them)
         self.kinematic = []  # static frames the user moved before the current step, or that have a velocity

@@ -192,6 +192,13 @@ class World:
             names[j] = raw.getJointInfo(b, j, physicsClientId=self.cid)[12].decode("utf-8", "replace")
         return names
 
+    def self_collision(self) -> dict:
+        """{body: URDF_USE_SELF_COLLISION* bits} of the bodies whose links collide with each
+        other: as loaded, or named in ``self_collision_bodies`` (pybullet's default rule)."""
+        out = dict.fromkeys(self.self_collision_bodies, pybullet.URDF_USE_SELF_COLLISION)
+        out.update(self.journal.self_collision)
+        return out
+
     def register(self, b, link, box) -> None:
         """Declare a box on a frame whose boxes cannot be read (checked by the caller)."""
         boxes = self.registered.get((b, link), (0, []))[1]
@@ -219,7 +226,7 @@ class World:
                 f = len(keys)
                 keys.append((b, fr.link))
                 kinds.append(fr.kind)
-                selfc.append(b in self.self_collision_bodies)
+                selfc.append(b in self.self_collision_bodies or b in self.journal.self_collision)
                 defaults.append(default_group_mask(fr.fixed))
                 if fr.name in file_groups:
                     fgm[(b, fr.link)] = file_groups[fr.name]

@@ -1,0 +1,358 @@
+"""Articulated bodies: every link box swept on its exact within-step path, and the
+whole body rewound in joint space.
+
+After pybullet's step each articulated body is read once (base pose and velocity,
+every joint's position and velocity: three calls), and the core's ``ChainMotion``
+rebuilds every link's path through the step by Bullet's own integration rules
+(``chain.py``; docs/design.md, "Link paths"). The body's frames get their pose after
+the step and the chord of their step as a velocity, so that the rigid sweep
+(``sweep``) sees them as partners of fast free boxes; their own fast boxes are swept
+here, on the exact paths (``LinkBoxPath``, conservatively fitted: a touch is never
+missed nor reported late), against every box near their swept bounds.
+
+A pair that pybullet would resolve wrongly from where the step left it (the link
+went through, or ended deeper than half the pair's reach along the contact normal)
+stops the whole body at the first time the pair overlaps by ``penetration`` on the
+exact path: base pose and every joint position at that time, with the velocities it
+had (``resetJointStateMultiDof`` takes both; motor targets and constraints are left
+as the user set them). A body that meets several others stops at the earliest.
+
+Self-collision: a body's links are paired when pybullet collides them, that is when
+the body was loaded with URDF_USE_SELF_COLLISION (or named in
+``self_collision_bodies``), minus a link's parent (by default), or all its ancestors
+(URDF_USE_SELF_COLLISION_EXCLUDE_ALL_PARENTS), as Bullet's
+btMultiBodyLinkCollider::checkCollideWithOverride decides.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+import pybullet
+
+from .. import _core
+from ..solver import Outcome
+from ._hooks import raw
+from .chain import read_chain
+from .events import CCDEvent
+from .impact import _pose4, _pose7
+from .layout import POSE, TWIST
+from .sweep import CREEP
+from .world import FREE, LINK
+
+__all__ = ["Articulated"]
+
+
+@dataclass
+class _Body:
+    body: int
+    chain: object  # BodyChain
+    frames: list  # its tracked frames (base first if tracked)
+    links: dict  # frame -> link index (-1: base)
+    boxes: list  # [(frame, box index)]
+    ancestors: dict  # link -> set of links a self-collision pair with it is not made with
+    motion: object = None  # ChainMotion of the current step
+    base_state: np.ndarray = None
+    qdot: np.ndarray = None
+    paths: dict = field(default_factory=dict)  # box -> BoxPath of the current step
+    link_of_frame: np.ndarray = None  # (len(frames),) int64: each frame's link
+
+
+class Articulated:
+    """The articulated bodies of a world (see the module docstring)."""
+
+    def __init__(self, cid, tables, self_collision, warn):
+        """``self_collision``: {body: URDF_USE_SELF_COLLISION* bits} of the bodies whose links
+        collide with each other."""
+        self.cid, self.tables = cid, tables
+        self.bodies = {}
+        for b, frames in tables.frames_of.items():
+            if not any(tables.kind[f] == LINK for f in frames):
+                continue
+            try:
+                chain = read_chain(cid, b)
+            except ValueError as e:
+                warn(("chain", b), f"{e}; its links are swept on straight-line estimates and not rewound")
+                continue
+            links = {f: tables.keys[f][1] for f in frames}
+            bits = self_collision.get(b)
+            self.bodies[b] = _Body(b, chain, frames, links, [(f, i) for f in frames for i in tables.frame_boxes[f]],
+                                   _excluded(chain.parent, bits) if bits is not None else None)
+        for rec in self.bodies.values():
+            rec.link_of_frame = np.array([rec.links[f] for f in rec.frames], dtype=np.int64)
+        self.frames = {f for rec in self.bodies.values() for f in rec.frames}
+        self.boxes = np.array(sorted(i for rec in self.bodies.values() for _, i in rec.boxes), dtype=np.int64)
+        self._rigid = np.setdiff1d(np.arange(len(tables.radius)), self.boxes, assume_unique=True)
+
+    # ------------------------------------------------------------ reading
+    def read(self, dt, state):
+        """Read every articulated body after the step, and put its frames' poses after the
+        step and their chords (as velocities) in ``state.rows``."""
+        cid = self.cid
+        for rec in self.bodies.values():
+            pos, orn = raw.getBasePositionAndOrientation(rec.body, physicsClientId=cid)
+            v, w = raw.getBaseVelocity(rec.body, physicsClientId=cid)
+            rec.base_state = np.array([*pos, *orn, *v, *w], dtype=np.float64)
+            n = rec.chain.n_links
+            if n:
+                js = raw.getJointStatesMultiDof(rec.body, list(range(n)), physicsClientId=cid)
+                q = np.fromiter((x for s in js for x in s[0]), np.float64)
+                rec.qdot = np.fromiter((x for s in js for x in s[1]), np.float64)
+            else:
+                q = rec.qdot = np.zeros(0)
+            rec.motion = rec.chain.motion(rec.base_state, q, rec.qdot, dt)
+            rec.paths = {}
+            state.rows[rec.frames] = rec.motion.frame_rows(rec.link_of_frame, dt)
+            state.fresh.update(rec.frames)
+
+    def _path(self, rec, box, state, dt):
+        path = rec.paths.get(box)
+        if path is None:
+            t = self.tables
+            f = int(t.box_frame[box])
+            link = rec.links[f]
+            if link == -1:
+                row = _core.path_rows(rec.base_state[None], dt, np.array([box], dtype=np.int64),
+                                      np.zeros(len(t.box_frame), dtype=np.int64), t.X_CS, t.half)[0]
+                path = _core.RowBoxPath(row)
+            else:
+                path = _core.LinkBoxPath(rec.motion, link, t.X_CS[box], t.half[box])
+            rec.paths[box] = path
+        return path
+
+    # ------------------------------------------------------------ sweeping
+    def sweep(self, dt, state, sweep_reach, fit_tolerance, tolerances, penetration, stats):
+        """Sweep the fast link boxes; stop the bodies whose pairs pybullet would resolve
+        wrongly, or push the free box a link presses into. Returns (events, {body: tau it
+        was stopped at}, {free frames pushed})."""
+        t = self.tables
+        fast = []
+        for rec in self.bodies.values():
+            for f, i in rec.boxes:
+                path = self._path(rec, i, state, dt)
+                if 2.0 * path.travel(0.0, 1.0) > sweep_reach[i]:
+                    fast.append((rec, f, i, path))
+        if not fast:
+            return [], {}, set()
+        stats.swept_boxes += len(fast)
+        slack = self._slack(state, dt) + 1e-9
+        linked = self._linked_bounds(fast, state, dt)
+        found = []  # ((touch, act at, contact, initial), rec, frame, partner frame)
+        cache, seen = {}, set()
+        for rec, f, i, path in fast:
+            box = path.bounds(4).tolist()
+            near = raw.getOverlappingObjects([x - slack for x in box[:3]], [x + slack for x in box[3:]],
+                                             physicsClientId=self.cid) or ()
+            candidates = [(t.index[key], j) for key in near if key in t.index and t.index[key] not in self.frames
+                          for j in t.frame_boxes[t.index[key]]]
+            candidates += [(int(t.box_frame[j]), j) for j, other_box in linked.items() if _meet(box, other_box)]
+            for g, j in candidates:
+                if g == f or (min(i, j), max(i, j)) in seen or not self._collide(rec, f, g):
+                    continue
+                seen.add((min(i, j), max(i, j)))
+                other = self._partner(j, g, state, dt, cache)
+                if j not in linked and not _meet(box, other.bounds(1).tolist()):
+                    continue  # their swept bounds do not meet
+                hit = self._judge(path, other, fit_tolerance, tolerances, penetration, stats)
+                if hit is not None:
+                    found.append((hit, rec, f, g, (path, other)))
+        stops, pushes, events = {}, [], []
+        for (touch, act, c, initial, pressing), rec, f, g, pair in sorted(found, key=lambda x: x[0][0]):
+            partner = self.bodies.get(int(t.body[g]))
+            if act is not None and pressing and t.kind[g] == FREE and partner is None:
+                pushes.append((act, rec, f, g, pair))
+            elif act is not None:
+                stops[rec.body] = min(stops.get(rec.body, act), act)
+                if partner is not None and partner is not rec:
+                    stops[partner.body] = min(stops.get(partner.body, act), act)
+            events.append(CCDEvent(*t.keys[f], *t.keys[g], touch, touch * dt, c[0], c[1], c[2], act is not None,
+                                   initial))
+        for b, tau in stops.items():
+            self.stop(self.bodies[b], tau, state)
+        stats.rewinds += len(stops)
+        pushed = set()
+        for tau, rec, f, g, pair in pushes:
+            if rec.body not in stops and g not in pushed:
+                self._push(rec, f, g, tau, pair, state, dt)
+                pushed.add(g)
+        stats.pushes += len(pushed)
+        return events, stops, pushed
+
+    def _slack(self, state, dt):
+        """The farthest a box of a frame not of an articulated body moves in the step
+        (partners are looked for that much beyond a fast box's bounds; the articulated
+        bodies' own boxes are paired on their swept bounds, ``_nearby``)."""
+        t, rigid = self.tables, self._rigid
+        if not len(rigid):
+            return 0.0
+        rows = state.rows[t.box_frame[rigid]]
+        v = np.linalg.norm(rows[:, 7:10], axis=1)
+        w = np.linalg.norm(rows[:, 10:13], axis=1)
+        return float(np.max((v + w * t.radius[rigid]) * dt))
+
+    def _linked_bounds(self, fast, state, dt):
+        """{box: [lo (3), hi (3)]} swept bounds of the articulated bodies' boxes that may meet a fast
+        one: every box of a body with self-collision and a fast box, and, when there are
+        several articulated bodies, all of theirs."""
+        bodies = {rec.body for rec, _, _, _ in fast if rec.ancestors is not None}
+        if len(self.bodies) > 1:
+            bodies = set(self.bodies)
+        out = {}
+        for b in bodies:
+            rec = self.bodies[b]
+            for _, j in rec.boxes:
+                out[j] = self._path(rec, j, state, dt).bounds(4).tolist()
+        return out
+
+    def _collide(self, rec, f, g):
+        """Whether pybullet collides frame f (of rec) with frame g."""
+        t = self.tables
+        if int(t.body[g]) == rec.body:
+            if rec.ancestors is None:
+                return False
+            la, lb = rec.links[f], rec.links[g]
+            if lb in rec.ancestors.get(la, ()) or la in rec.ancestors.get(lb, ()):
+                return False
+        return bool(t.filters.allowed(f, g))
+
+    def _partner(self, j, g, state, dt, cache):
+        t = self.tables
+        rec = self.bodies.get(int(t.body[g]))
+        if rec is not None and rec.motion is not None:
+            return self._path(rec, j, state, dt)
+        if ("row", j) not in cache:
+            state.read_poses(state.stale([g]))
+            row = _core.path_rows(state.rows, dt, np.array([j], dtype=np.int64), t.box_frame, t.X_CS, t.half)[0]
+            cache[("row", j)] = _core.RowBoxPath(row)
+        return cache[("row", j)]
+
+    def _judge(self, a, b, fit_tolerance, tolerances, penetration, stats):
+        """(touch, act at or None, (point, normal, feature), initial, pressing: touching or
+        all but when the step began) of a pair of paths, or None if they stay apart."""
+        touch, solves, c = _core.paths_contact(a, b, fit_tolerance, tolerances._core)
+        stats.solver_rows += solves
+        stats.candidate_pairs += 1
+        stats.outcomes[Outcome.SEPARATED if c is None else c.outcome] += 1
+        if math.isnan(touch):
+            return None
+        d0 = float(_core.paths_depth(a, b, 0.0))
+        initial = d0 >= 0.0
+        thin = min(a.half_extents.min(), b.half_extents.min())
+        # A pair touching, or all but, when the step began was in pybullet's contact solve
+        # (its contacts reach a little beyond the touch): acted on only if it pressed in
+        # deeper than a creep.
+        creep = CREEP * thin
+        target = max(d0, 0.0) + max(penetration, creep) if d0 > -creep else penetration
+        act = float(_core.paths_first_depth(a, b, touch, target))
+        if c.feature is not None:
+            contact = (c.point, c.normal, c.feature)
+        else:  # no BMS plane found (a touch at the start, or on a piece too fast to fit): no feature to name
+            _, n = _core.paths_separation(a, b, touch)
+            Xa, Xb = a.pose(touch), b.pose(touch)
+            contact = (0.5 * (Xa[:3, 3] + Xb[:3, 3]), n, None)
+        if math.isnan(act) or not _goes_wrong(a, b, act):
+            act = None
+        return touch, act, contact, initial, d0 > -creep
+
+    # ------------------------------------------------------------ pushing
+    def _push(self, rec, f, g, tau, pair, state, dt):
+        """Free frame g, pressed into by the link of frame f from tau on, carried with that
+        link's frame from tau to the end of the step, and given the velocity of a collision
+        with an immovable body moving as the link does there (pybullet's combined
+        restitution; spin left as it is)."""
+        link = rec.links[f]
+        frame = (lambda s: rec.motion.base_pose(s)) if link == -1 else (lambda s: rec.motion.link_pose(link, s))
+        F_t, F_1 = _pose4(frame(tau)), _pose4(frame(1.0))
+        X = _pose4(_core.frame_poses(state.rows, dt, np.array([g], dtype=np.int64), np.array([tau]))[0])
+        turn = F_1 @ np.linalg.inv(F_t)
+        X1 = turn @ X
+        _, n = _core.paths_separation(pair[0], pair[1], tau)
+        n = turn[:3, :3] @ n
+        v_link = state.rows[f, 7:10] + np.cross(state.rows[f, 10:13], X1[:3, 3] - F_1[:3, 3])
+        v, w = state.rows[g, 7:10].copy(), state.rows[g, 10:13].copy()
+        approach = float(np.dot(v - v_link, n))
+        if approach < 0.0:
+            e = (raw.getDynamicsInfo(*self.tables.keys[g], physicsClientId=self.cid)[5] *
+                 raw.getDynamicsInfo(*self.tables.keys[f], physicsClientId=self.cid)[5])
+            v -= (1.0 + e) * approach * n
+        pose = _pose7(X1)
+        body = self.tables.keys[g][0]
+        raw.resetBasePositionAndOrientation(body, pose[:3].tolist(), pose[3:].tolist(), physicsClientId=self.cid)
+        raw.resetBaseVelocity(body, v.tolist(), w.tolist(), physicsClientId=self.cid)
+        state.rows[g, POSE], state.rows[g, 7:10] = pose, v
+
+    # ------------------------------------------------------------ stopping
+    def stop(self, rec, tau, state):
+        """Put the body where its path has it at tau (base pose, joint positions), with the
+        velocities it had after the step; its frames stand still from there."""
+        cid, m = self.cid, rec.motion
+        base = m.base_pose(tau)
+        raw.resetBasePositionAndOrientation(rec.body, base[:3].tolist(), base[3:].tolist(), physicsClientId=cid)
+        raw.resetBaseVelocity(rec.body, rec.base_state[7:10].tolist(), rec.base_state[10:13].tolist(),
+                              physicsClientId=cid)
+        q = m.joint_positions(tau)
+        ch = rec.chain
+        for j in range(ch.n_links):
+            kind = int(ch.joint_type[j])
+            if kind == pybullet.JOINT_FIXED:
+                continue
+            qi, di = int(ch.q_index[j]), int(ch.qdot_index[j])
+            nq, nd = (4, 3) if kind == pybullet.JOINT_SPHERICAL else (1, 1)
+            raw.resetJointStateMultiDof(rec.body, j, q[qi:qi + nq].tolist(), rec.qdot[di:di + nd].tolist(),
+                                        physicsClientId=cid)
+        ends = m.link_poses(tau)
+        for f in rec.frames:
+            link = rec.links[f]
+            state.rows[f, POSE] = base if link == -1 else ends[link]
+            state.rows[f, TWIST] = 0.0
+        rec.motion = None  # its paths are no longer this step's
+
+    def stop_all(self, tau, stopped, state):
+        """Exact-time mode: every articulated body not stopped earlier, at tau."""
+        for b, rec in self.bodies.items():
+            if rec.motion is not None and stopped.get(b, 1.0) > tau:
+                self.stop(rec, tau, state)
+
+
+def _goes_wrong(a, b, s_act):
+    """Whether pybullet would resolve the pair wrongly from where the step leaves it, once
+    it overlapped by the target at s_act. With n the contact normal (from A towards B:
+    the axis of least overlap when it first went that deep): overlapping at the end,
+    B's centre gone past the middle of the pair's reach along n, or the least overlap
+    pointing back out of the far side; apart at the end, B's centre on A's far side
+    along n (it went through). A pair that parted on the side it came from, or sideways
+    (a strike, a link sweeping along a face), is pybullet's to resolve."""
+    depth1, axis1 = _core.paths_separation(a, b, 1.0)
+    _, n = _core.paths_separation(a, b, s_act)
+    Xa, Xb = a.pose(1.0), b.pose(1.0)
+    along = float(np.dot(Xb[:3, 3] - Xa[:3, 3], n))
+    if depth1 <= 0.0:
+        return along < 0.0
+    reach = np.abs(Xa[:3, :3].T @ n) @ a.half_extents + np.abs(Xb[:3, :3].T @ n) @ b.half_extents
+    return float(np.dot(axis1, n)) < 0.0 or along < 0.5 * reach
+
+
+def _meet(a, b):
+    """Whether two bounds [lo (3), hi (3)] overlap."""
+    return a[0] <= b[3] and b[0] <= a[3] and a[1] <= b[4] and b[1] <= a[4] and a[2] <= b[5] and b[2] <= a[5]
+
+
+def _excluded(parent, bits):
+    """link -> the links pybullet does not pair it with in self-collision."""
+    out = {}
+    all_parents = bool(bits & pybullet.URDF_USE_SELF_COLLISION_EXCLUDE_ALL_PARENTS)
+    include_parent = bool(bits & pybullet.URDF_USE_SELF_COLLISION_INCLUDE_PARENT)
+    for link in range(len(parent)):
+        if all_parents:
+            up, p = set(), int(parent[link])
+            while True:
+                up.add(p)
+                if p == -1:
+                    break
+                p = int(parent[p])
+            out[link] = up
+        elif not include_parent:
+            out[link] = {int(parent[link])}
+    return out

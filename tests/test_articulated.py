@@ -1,0 +1,273 @@
+"""Articulated bodies in pybullet worlds (issue 13): every link box swept on its exact
+path, the whole body rewound in joint space, self-collision as pybullet decides it.
+Each scene runs with plain pybullet in the same test: the plain run must go wrong
+(the contrast), the plugin's must not."""
+
+from __future__ import annotations
+
+import numpy as np
+import pybullet as p
+import pytest
+
+import bullet_boxccd  # noqa: F401  (imported before the worlds are built: it sees their flags)
+from bullet_boxccd import BoxCCD
+
+PENETRATION = 2e-7
+
+
+def _world(cid, dt=1 / 240, gravity=0.0):
+    p.resetSimulation(physicsClientId=cid)
+    p.setTimeStep(dt, physicsClientId=cid)
+    p.setGravity(0, 0, gravity, physicsClientId=cid)
+
+
+def _arm(cid, thickness=0.01, margin=None):
+    """A fixed base with one revolute joint (z) carrying a 0.6 m bar, its motor off."""
+    base = p.createCollisionShape(p.GEOM_BOX, halfExtents=[0.05] * 3, physicsClientId=cid)
+    bar = p.createCollisionShape(p.GEOM_BOX, halfExtents=[0.3, thickness / 2, 0.02],
+                                 collisionFramePosition=[0.3, 0, 0], physicsClientId=cid)
+    arm = p.createMultiBody(0, base, linkMasses=[1.0], linkCollisionShapeIndices=[bar], linkVisualShapeIndices=[-1],
+                            linkPositions=[[0, 0, 0]], linkOrientations=[[0, 0, 0, 1]],
+                            linkInertialFramePositions=[[0.3, 0, 0]], linkInertialFrameOrientations=[[0, 0, 0, 1]],
+                            linkParentIndices=[0], linkJointTypes=[p.JOINT_REVOLUTE], linkJointAxis=[[0, 0, 1]],
+                            physicsClientId=cid)
+    p.changeDynamics(arm, 0, linearDamping=0, angularDamping=0, maxJointVelocity=1000, physicsClientId=cid)
+    if margin is not None:
+        p.changeDynamics(arm, 0, collisionMargin=margin, physicsClientId=cid)
+    p.setJointMotorControl2(arm, 0, p.VELOCITY_CONTROL, force=0, physicsClientId=cid)
+    return arm
+
+
+def _swing(cid, use_ccd, seed, omega, plate=0.002, margin=None, exact_time=False):
+    """(passed through, rewound events with their (arm, plate) closest distance)."""
+    _world(cid)
+    arm = _arm(cid, margin=margin)
+    shape = p.createCollisionShape(p.GEOM_BOX, halfExtents=[0.1, plate / 2, 0.2], physicsClientId=cid)
+    wall = p.createMultiBody(0, shape, basePosition=[0.45, 0, 0], physicsClientId=cid)
+    if margin is not None:
+        p.changeDynamics(wall, -1, collisionMargin=margin, physicsClientId=cid)
+    rng = np.random.default_rng(seed)
+    p.resetJointState(arm, 0, -np.pi / 2 + rng.uniform(0, 0.3), omega, physicsClientId=cid)
+    ccd = BoxCCD(cid, exact_time=exact_time) if use_ccd else None
+    gaps = []
+    for _ in range(60):
+        if ccd is None:
+            p.stepSimulation(physicsClientId=cid)
+        else:
+            events = ccd.step()
+            if any(e.rewound and {e.body_a, e.body_b} == {arm, wall} for e in events) and not exact_time:
+                d = p.getClosestPoints(arm, wall, 0.01, 0, -1, physicsClientId=cid)
+                gaps.append(min(c[8] for c in d))
+        if p.getJointState(arm, 0, physicsClientId=cid)[0] > 0.3:
+            return True, gaps
+    return False, gaps
+
+
+@pytest.mark.parametrize("omega", [20.0, 50.0])
+def test_box_link_arm_never_swings_through_a_thin_plate(cid, omega):
+    seeds = range(8)
+    plain = sum(_swing(cid, False, s, omega)[0] for s in seeds)
+    runs = [_swing(cid, True, s, omega, margin=0.0) for s in seeds]
+    assert plain >= 6  # pybullet alone lets the bar through
+    assert sum(r[0] for r in runs) == 0
+    gaps = [g for r in runs for g in r[1]]
+    assert gaps  # the rewinds happened, and here is where they left the pair:
+    # the sharp boxes (zero margin) overlapping by the rewind depth, within rounding.
+    assert all(-2 * PENETRATION - 1e-9 <= g <= 1e-9 for g in gaps), gaps
+
+
+def test_exact_time_mode_stops_articulated_bodies_too(cid):
+    assert sum(_swing(cid, True, s, 30.0, exact_time=True)[0] for s in range(4)) == 0
+
+
+def _r2d2(cid, use_ccd, seed):
+    _world(cid, gravity=-9.8)
+    rng = np.random.default_rng(seed)
+    shape = p.createCollisionShape(p.GEOM_BOX, halfExtents=[0.005, 2, 2], physicsClientId=cid)
+    p.createMultiBody(0, shape, basePosition=[2, 0, 1], physicsClientId=cid)
+    robot = p.loadURDF("r2d2.urdf", [0, 0, 1], p.getQuaternionFromEuler(rng.uniform(-0.3, 0.3, 3)),
+                       physicsClientId=cid)
+    for j in range(-1, p.getNumJoints(robot, physicsClientId=cid)):
+        p.changeDynamics(robot, j, maxJointVelocity=1000, physicsClientId=cid)
+    p.resetBaseVelocity(robot, [rng.uniform(80, 120), 0, 0], rng.uniform(-5, 5, 3).tolist(), physicsClientId=cid)
+    ccd = BoxCCD(cid) if use_ccd else None
+    for _ in range(120):
+        ccd.step() if ccd else p.stepSimulation(physicsClientId=cid)
+    return p.getBasePositionAndOrientation(robot, physicsClientId=cid)[0][0] > 2
+
+
+def test_thrown_r2d2_never_passes_a_thin_wall(cid):
+    seeds = range(12)
+    assert sum(_r2d2(cid, False, s) for s in seeds) >= 1
+    assert sum(_r2d2(cid, True, s) for s in seeds) == 0
+
+
+def _cartpole(cid, use_ccd, seed):
+    """pybullet_data's cartpole at a 0.02 s step (the pybullet_envs setting), the cart
+    sent at 30-60 m/s along its slider into a 1 cm wall."""
+    _world(cid, dt=0.02, gravity=-9.8)
+    rng = np.random.default_rng(seed)
+    robot = p.loadURDF("cartpole.urdf", [0, 0, 0], physicsClientId=cid)
+    shape = p.createCollisionShape(p.GEOM_BOX, halfExtents=[0.005, 1, 1], physicsClientId=cid)
+    p.createMultiBody(0, shape, basePosition=[2.0, 0, 0], physicsClientId=cid)
+    for j in range(-1, 2):
+        p.changeDynamics(robot, j, maxJointVelocity=1000, linearDamping=0, angularDamping=0, physicsClientId=cid)
+    for j in range(2):
+        p.setJointMotorControl2(robot, j, p.VELOCITY_CONTROL, force=0, physicsClientId=cid)
+    p.resetJointState(robot, 0, rng.uniform(-0.2, 0.2), rng.uniform(30, 60), physicsClientId=cid)
+    ccd = BoxCCD(cid) if use_ccd else None
+    for _ in range(30):
+        ccd.step() if ccd else p.stepSimulation(physicsClientId=cid)
+    return p.getLinkState(robot, 0, physicsClientId=cid)[0][0] > 2.0
+
+
+def test_cartpole_cart_never_passes_a_thin_wall(cid):
+    seeds = range(12)
+    assert sum(_cartpole(cid, False, s) for s in seeds) >= 4
+    assert sum(_cartpole(cid, True, s) for s in seeds) == 0
+
+
+def test_fast_box_never_passes_a_resting_arm_link(cid):
+    def run(use_ccd, seed):
+        _world(cid)
+        arm = _arm(cid, thickness=0.004)
+        p.resetJointState(arm, 0, np.pi / 2, 0.0, physicsClientId=cid)  # the bar along +y, held there
+        p.setJointMotorControl2(arm, 0, p.VELOCITY_CONTROL, targetVelocity=0.0, force=1e6, physicsClientId=cid)
+        rng = np.random.default_rng(seed)
+        cube = p.createMultiBody(1.0, p.createCollisionShape(p.GEOM_BOX, halfExtents=[0.02] * 3,
+                                                             physicsClientId=cid),
+                                 basePosition=[-0.3, rng.uniform(0.2, 0.5), 0], physicsClientId=cid)
+        p.resetBaseVelocity(cube, [rng.uniform(80, 150), 0, 0], rng.uniform(-20, 20, 3).tolist(),
+                            physicsClientId=cid)
+        ccd = BoxCCD(cid) if use_ccd else None
+        for _ in range(20):
+            ccd.step() if ccd else p.stepSimulation(physicsClientId=cid)
+        return p.getBasePositionAndOrientation(cube, physicsClientId=cid)[0][0] > 0.0
+
+    assert sum(run(False, s) for s in range(8)) >= 6
+    assert sum(run(True, s) for s in range(8)) == 0
+
+
+def test_driven_arm_sweeps_light_cubes_ahead_and_is_not_held_back(cid):
+    """A velocity-driven arm at 30 rad/s meets a light free cube in its path: the first
+    strike stops the arm at the touch, then the link pushes the cube ahead of it (the
+    cube is carried with the link, not the arm held at every step)."""
+    def run(use_ccd, seed):
+        _world(cid)
+        arm = _arm(cid)
+        p.setJointMotorControl2(arm, 0, p.VELOCITY_CONTROL, targetVelocity=30.0, force=500, physicsClientId=cid)
+        rng = np.random.default_rng(seed)
+        r, a = rng.uniform(0.3, 0.55), rng.uniform(0.5, 1.0)
+        cube = p.createMultiBody(0.05, p.createCollisionShape(p.GEOM_BOX, halfExtents=[0.01] * 3,
+                                                              physicsClientId=cid),
+                                 basePosition=[r * np.cos(a), r * np.sin(a), 0], physicsClientId=cid)
+        p.changeDynamics(cube, -1, maxJointVelocity=10000, physicsClientId=cid)
+        ccd = BoxCCD(cid) if use_ccd else None
+        start = np.array(p.getBasePositionAndOrientation(cube, physicsClientId=cid)[0])
+        for _ in range(30):
+            ccd.step() if ccd else p.stepSimulation(physicsClientId=cid)
+        moved = np.linalg.norm(np.array(p.getBasePositionAndOrientation(cube, physicsClientId=cid)[0]) - start)
+        return moved, p.getJointState(arm, 0, physicsClientId=cid)[0]
+
+    seeds = range(6)
+    plain = [run(False, s) for s in seeds]
+    ccd = [run(True, s) for s in seeds]
+    assert sum(m < 1e-6 for m, _ in plain) >= 2  # plain pybullet's link passes through some cubes
+    assert all(m > 0.5 for m, _ in ccd)  # every cube is struck and flies
+    assert all(q >= 0.9 * q_plain for (_, q), (_, q_plain) in zip(ccd, plain))
+
+
+# ------------------------------------------------------------ do no harm
+def _states(cid, bodies):
+    out = []
+    for b in bodies:
+        out += p.getBasePositionAndOrientation(b, physicsClientId=cid)[0]
+        out += p.getBaseVelocity(b, physicsClientId=cid)[0]
+        for j in range(p.getNumJoints(b, physicsClientId=cid)):
+            out += p.getJointState(b, j, physicsClientId=cid)[:2]
+    return np.array(out)
+
+
+def _slow_arm_world(cid):
+    _world(cid, gravity=-9.8)
+    arm = _arm(cid)
+    p.setJointMotorControl2(arm, 0, p.VELOCITY_CONTROL, targetVelocity=1.0, force=50, physicsClientId=cid)
+    ground = p.createCollisionShape(p.GEOM_BOX, halfExtents=[2, 2, 0.1], physicsClientId=cid)
+    p.createMultiBody(0, ground, basePosition=[0, 0, -0.2], physicsClientId=cid)
+    robot = p.loadURDF("r2d2.urdf", [1.5, 0, 0.5], physicsClientId=cid)
+    return [arm, robot]
+
+
+def test_slow_arm_and_resting_robot_follow_plain_pybullet(cid):
+    runs = []
+    for use_ccd in (False, True):
+        bodies = _slow_arm_world(cid)
+        ccd = BoxCCD(cid) if use_ccd else None
+        trace = []
+        for _ in range(300):
+            ccd.step() if ccd else p.stepSimulation(physicsClientId=cid)
+            trace.append(_states(cid, bodies))
+        runs.append(np.array(trace))
+        if ccd:
+            assert ccd.stats.rewinds == 0
+    assert np.abs(runs[0][-1] - runs[0][0]).max() > 0.1  # things did move
+    assert np.abs(runs[0] - runs[1]).max() <= 1e-9
+
+
+# ------------------------------------------------------------ self-collision
+def _chain_world(cid, flags):
+    """A free base with two revolute links folded so that every pair of its three boxes
+    overlaps; pybullet's own contacts after one step say which pairs it collides."""
+    _world(cid)
+    shape = p.createCollisionShape(p.GEOM_BOX, halfExtents=[0.2, 0.05, 0.05], physicsClientId=cid)
+    body = p.createMultiBody(1.0, shape, basePosition=[0, 0, 0], linkMasses=[1.0, 1.0],
+                             linkCollisionShapeIndices=[shape, shape], linkVisualShapeIndices=[-1, -1],
+                             linkPositions=[[0.0, 0.04, 0], [0.0, 0.04, 0]],
+                             linkOrientations=[[0, 0, 0, 1]] * 2, linkInertialFramePositions=[[0, 0, 0]] * 2,
+                             linkInertialFrameOrientations=[[0, 0, 0, 1]] * 2, linkParentIndices=[0, 1],
+                             linkJointTypes=[p.JOINT_REVOLUTE] * 2, linkJointAxis=[[0, 0, 1]] * 2, flags=flags,
+                             physicsClientId=cid)
+    return body
+
+
+@pytest.mark.parametrize("flags", [0, p.URDF_USE_SELF_COLLISION,
+                                   p.URDF_USE_SELF_COLLISION | p.URDF_USE_SELF_COLLISION_INCLUDE_PARENT,
+                                   p.URDF_USE_SELF_COLLISION | p.URDF_USE_SELF_COLLISION_EXCLUDE_ALL_PARENTS])
+def test_self_collision_pairs_are_pybullets(cid, flags):
+    body = _chain_world(cid, flags)
+    ccd = BoxCCD(cid)
+    p.stepSimulation(physicsClientId=cid)
+    seen = {tuple(sorted((c[3], c[4]))) for c in p.getContactPoints(body, body, physicsClientId=cid)}
+    t, rec = ccd.world.tables, ccd._chains.bodies[body]
+    mine = set()
+    for la, lb in ((-1, 0), (-1, 1), (0, 1)):
+        fa, fb = t.index[(body, la)], t.index[(body, lb)]
+        if ccd._chains._collide(rec, fa, fb):
+            mine.add((la, lb))
+    assert mine == seen
+
+
+def test_fast_self_collision_is_caught(cid):
+    """A link swung fast into its own body's base (self-collision on) is stopped there."""
+    def run(use_ccd):
+        _world(cid)
+        base = p.createCollisionShape(p.GEOM_BOX, halfExtents=[0.3, 0.002, 0.1], physicsClientId=cid)
+        bar = p.createCollisionShape(p.GEOM_BOX, halfExtents=[0.25, 0.005, 0.02], collisionFramePosition=[0.25, 0, 0],
+                                     physicsClientId=cid)
+        body = p.createMultiBody(0, base, basePosition=[0, 0, 0], linkMasses=[1.0], linkCollisionShapeIndices=[bar],
+                                 linkVisualShapeIndices=[-1], linkPositions=[[-0.35, 0, 0.0]],
+                                 linkOrientations=[[0, 0, 0, 1]], linkInertialFramePositions=[[0.25, 0, 0]],
+                                 linkInertialFrameOrientations=[[0, 0, 0, 1]], linkParentIndices=[0],
+                                 linkJointTypes=[p.JOINT_REVOLUTE], linkJointAxis=[[0, 0, 1]],
+                                 flags=p.URDF_USE_SELF_COLLISION | p.URDF_USE_SELF_COLLISION_INCLUDE_PARENT,
+                                 physicsClientId=cid)
+        p.changeDynamics(body, 0, maxJointVelocity=1000, physicsClientId=cid)
+        p.setJointMotorControl2(body, 0, p.VELOCITY_CONTROL, force=0, physicsClientId=cid)
+        p.resetJointState(body, 0, 1.2, -60.0, physicsClientId=cid)
+        ccd = BoxCCD(cid) if use_ccd else None
+        for _ in range(10):
+            ccd.step() if ccd else p.stepSimulation(physicsClientId=cid)
+        return p.getJointState(body, 0, physicsClientId=cid)[0] < 0.0  # swung through its base
+
+    assert run(False)
+    assert not run(True)
