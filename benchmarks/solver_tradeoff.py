@@ -9,7 +9,7 @@ advancement steps per section; reaching it reports contact early). This script
 sweeps one knob at a time around the default (gap_rel 1e-12, rounding 64,
 max_steps 400), plus gap_rel = rounding = 0 together, and for each configuration
 and motion family (``trans``, ``rot``, ``both``: the seeded pair generator of
-``benchmarks/solver.py``) reports
+``benchmarks/_shared.py``) reports
 
 * time per query: one ``time_of_impact_batch`` call over all pairs of the family,
   divided by the number of pairs; median over repeats (one core),
@@ -37,10 +37,10 @@ our default configuration called one pair at a time through ``time_of_impact``
 
 Truth (computed once per pair, shared by every configuration):
 
-* classification: the dense separating-axis sampling of ``benchmarks/solver.py``
+* classification: the dense separating-axis sampling of ``benchmarks/_shared.py``
   (``reference``); pairs it finds ambiguous (no intersecting sample, smallest gap
   within its margin) go to the float64 conservative-advancement oracle of
-  ``tests/oracle.py`` (``reference``), and stay excluded if that is unresolved;
+  ``bullet_boxccd.testing`` (``reference``), and stay excluded if that is unresolved;
 * contact time of a hitting pair: the sign change of the oracle's 40-digit
   mpmath SAT gap ``mp_gap`` bracketed in [t - 1e-6, t + 1e-6] around the default
   solver's answer t (or the float64 oracle's, if the default misses or the
@@ -61,8 +61,8 @@ seed and pair index (``make_pairs(seed, family_index, n)[index]``).
 
 Run
 ---
-    cd /work/main && PYTHONPATH=/work/main python3 benchmarks/solver_tradeoff.py           # ~2-3 min
-    cd /work/main && PYTHONPATH=/work/main python3 benchmarks/solver_tradeoff.py --quick   # < 30 s
+    python benchmarks/solver_tradeoff.py           # ~3 min
+    python benchmarks/solver_tradeoff.py --quick   # < 1 min
 
 Options: ``--seed`` (default 12345), ``--n`` pairs per family (default 400, about
 half hit; 45 with ``--quick``), ``--repeats``, ``--csv``, ``--png``.
@@ -75,23 +75,18 @@ import argparse
 import csv
 import math
 import os
-import sys
 import time
 
+import _shared as S  # sets OPENBLAS_NUM_THREADS before numpy loads
+import mpmath as mp
 import numpy as np
+
+from bullet_boxccd import Tolerances, time_of_impact, time_of_impact_batch
+from bullet_boxccd.testing import Case, mp_gap
+from bullet_boxccd.testing import reference as oracle_reference
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.dirname(HERE)
-sys.path.insert(0, HERE)
-sys.path.insert(0, os.path.join(ROOT, "tests"))
-
-import mpmath as mp  # noqa: E402
-import solver as S  # noqa: E402  (benchmarks/solver.py)
-from oracle import Case, mp_gap  # noqa: E402  (tests/oracle.py)
-from oracle import reference as oracle_reference  # noqa: E402
-
-from bullet_boxccd import Tolerances, time_of_impact, time_of_impact_batch  # noqa: E402
-
 fcl = S.fcl
 tqdm = S.tqdm
 
@@ -260,53 +255,31 @@ def errors(t, truth):
 
 
 def round_robin(jobs, repeats, desc):
-    """jobs: list of zero-argument callables, each timing one pass and returning ns per query.
-    The repeats are interleaved (job 1, job 2, ..., job 1, ...) so that drifts of the machine
-    (another process, frequency) hit every job alike. Returns, per job, the median us per query
-    and the interquartile range of the repeats relative to that median."""
-    for job in jobs:
-        job()  # warm-up
-    reps = [[] for _ in jobs]
-    for _ in tqdm(range(repeats), desc=desc, leave=False):
-        for k, job in enumerate(jobs):
-            reps[k].append(job())
+    """Interleaved timing (benchmarks/_shared.py): per job, the median us per query over
+    the repeats and their interquartile range relative to that median."""
+    times = S.round_robin(dict(enumerate(jobs)), repeats, desc)
     out = []
-    for r in reps:
-        q1, med, q3 = np.percentile(r, [25, 50, 75])
-        out.append((med / 1e3, (q3 - q1) / med))
+    for k in range(len(jobs)):
+        q1, med, q3 = np.percentile(times[k] * 1e6, [25, 50, 75])
+        out.append((med, (q3 - q1) / med))
     return out
 
 
 def batch_job(args, tol):
-    n = len(args[0])
-
     def job():
-        t0 = time.perf_counter_ns()
         time_of_impact_batch(*args, (0.0, 1.0), tol)
-        return (time.perf_counter_ns() - t0) / n
+        return len(args[0])
 
     return job
 
 
 def loop_job(fn, items):
     def job():
-        t0 = time.perf_counter_ns()
         for it in items:
             fn(*it)
-        return (time.perf_counter_ns() - t0) / len(items)
+        return len(items)
 
     return job
-
-
-def fcl_request(motion, toc_err, iters, gjk="libccd"):
-    mt = {"trans": fcl.CCDMotionType.CCDM_TRANS, "screw": fcl.CCDMotionType.CCDM_SCREW}[motion]
-    return fcl.ContinuousCollisionRequest(
-        num_max_iterations=iters,
-        toc_err=toc_err,
-        ccd_motion_type=mt,
-        gjk_solver_type={"libccd": fcl.GJKSolverType.GST_LIBCCD, "indep": fcl.GJKSolverType.GST_INDEP}[gjk],
-        ccd_solver_type=fcl.CCDSolverType.CCDC_CONSERVATIVE_ADVANCEMENT,
-    )
 
 
 # --------------------------------------------------------------------------------------
@@ -472,7 +445,6 @@ def main(argv=None):
     fams = list(S.FAMILIES)
     for fam, fname in enumerate(fams):
         p = S.make_pairs(args.seed, fam, n)
-        S.check_against_api(p)
         bargs = S.batch_args(p)
         t_def = time_of_impact_batch(*bargs, (0.0, 1.0), DEFAULT)
         tt = time.perf_counter()
@@ -516,7 +488,7 @@ def main(argv=None):
             base = {mo: S.fcl_setup(p, mo, "libccd") for mo in ("trans", "screw")}
             f_items, f_ans = [], []
             for mo, toc, iters, gjk in fconfs:
-                req = fcl_request(mo, toc, iters, gjk)
+                req = S.fcl_request(mo, toc, iters, gjk)
                 items = [it[:4] + (req,) for it in base[mo]]
                 t_f, err_f = S.fcl_answers(items)
                 t_f[err_f] = np.nan

@@ -12,7 +12,9 @@ from .solver import (
     InvalidMotionError,
     InvalidShapeError,
     InvalidTimeRangeError,
+    InvalidToleranceError,
     NonFiniteInputError,
+    Outcome,
     Plane,
     SingularMotionError,
     Tolerances,
@@ -30,6 +32,7 @@ __all__ = [
     "QuadraticMotion",
     "Contact",
     "Feature",
+    "Outcome",
     "Plane",
     "Tolerances",
     "time_of_impact",
@@ -43,6 +46,7 @@ __all__ = [
     "InvalidMotionError",
     "SingularMotionError",
     "InvalidTimeRangeError",
+    "InvalidToleranceError",
 ]
 
 

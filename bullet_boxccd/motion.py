@@ -16,7 +16,22 @@ import numpy as np
 from . import _core
 from ._arrays import as_float_array
 
-__all__ = ["QuadraticMotion", "rotation_matrix"]
+__all__ = ["QuadraticMotion", "rotation_matrix", "rotations", "screw_coeffs", "through_coeffs"]
+
+
+def rotations(rotvec) -> np.ndarray:
+    """(..., 3, 3) rotations by the rotation vectors ``rotvec`` (..., 3): about
+    ``rotvec / |rotvec|`` by ``|rotvec|`` radians (Rodrigues; the identity for a
+    zero vector)."""
+    rotvec = np.asarray(rotvec, dtype=float)
+    theta = np.linalg.norm(rotvec, axis=-1)
+    k = rotvec / np.where(theta > 0, theta, 1.0)[..., None]
+    K = np.zeros(rotvec.shape[:-1] + (3, 3))
+    K[..., 0, 1], K[..., 0, 2] = -k[..., 2], k[..., 1]
+    K[..., 1, 0], K[..., 1, 2] = k[..., 2], -k[..., 0]
+    K[..., 2, 0], K[..., 2, 1] = -k[..., 1], k[..., 0]
+    s, c = np.sin(theta)[..., None, None], (1.0 - np.cos(theta))[..., None, None]
+    return np.eye(3) + s * K + c * (K @ K)
 
 
 def rotation_matrix(axis, angle: float) -> np.ndarray:
@@ -25,9 +40,51 @@ def rotation_matrix(axis, angle: float) -> np.ndarray:
     n = np.linalg.norm(k)
     if n == 0.0:
         return np.eye(3)
-    k = k / n
-    K = np.array([[0, -k[2], k[1]], [k[2], 0, -k[0]], [-k[1], k[0], 0]])
-    return np.eye(3) + np.sin(angle) * K + (1.0 - np.cos(angle)) * (K @ K)
+    return rotations(k / n * angle)
+
+
+def through_coeffs(times, poses) -> np.ndarray:
+    """(..., 3, 4, 4) coefficients of the quadratics through three poses:
+    ``M(times[i]) = poses[..., i, :, :]``, with ``times`` (3,) distinct and
+    ``poses`` (..., 3, 4, 4) affine. The bottom rows are set exactly."""
+    t = np.asarray(times, dtype=float)
+    P = np.asarray(poses, dtype=float)
+    # Lagrange: the basis polynomial of pose i is (t - t_j)(t - t_k) / D_i.
+    c = np.zeros(P.shape)
+    for i in range(3):
+        j, k = (i + 1) % 3, (i + 2) % 3
+        Pi = P[..., i, :, :] / ((t[i] - t[j]) * (t[i] - t[k]))
+        c[..., 0, :, :] += t[j] * t[k] * Pi
+        c[..., 1, :, :] -= (t[j] + t[k]) * Pi
+        c[..., 2, :, :] += Pi
+    c[..., 0, 3, :] = (0.0, 0.0, 0.0, 1.0)
+    c[..., 1:, 3, :] = 0.0
+    return c
+
+
+def screw_coeffs(rotation, position, velocity, angular_velocity, t_range=(0.0, 1.0)) -> np.ndarray:
+    """(..., 3, 4, 4) coefficients of the quadratic motion that translates the
+    origin from ``position`` at ``velocity`` and spins the frame at constant
+    ``angular_velocity`` (rad per unit t, world axes) about that moving origin,
+    starting from ``rotation`` at ``t_range[0]``: all (..., 3) except
+    ``rotation`` (..., 3, 3). The translation is linear, so it is exact; the 3x3
+    part is the quadratic through the rotations at the start, middle and end of
+    ``t_range`` (exactly constant when the spin is zero)."""
+    R0 = np.asarray(rotation, dtype=float)
+    p0, v, w = (np.asarray(x, dtype=float) for x in (position, velocity, angular_velocity))
+    t0, t1 = float(t_range[0]), float(t_range[1])
+    times = np.array([t0, 0.5 * (t0 + t1), t1])
+    poses = np.zeros(np.broadcast_shapes(R0.shape[:-2], p0.shape[:-1], v.shape[:-1], w.shape[:-1]) + (3, 4, 4))
+    for i, t in enumerate(times):
+        poses[..., i, :3, :3] = rotations(w * (t - t0)) @ R0
+    c = through_coeffs(times, poses)
+    still = ~np.any(w != 0.0, axis=-1)
+    c[still, 0, :3, :3] = np.broadcast_to(R0, poses.shape[:-3] + (3, 3))[still]
+    c[still, 1:, :3, :3] = 0.0
+    c[..., 0, :3, 3] = p0 - v * t0
+    c[..., 1, :3, 3] = v
+    c[..., 2, :3, 3] = 0.0
+    return c
 
 
 def _pose(rotation=None, translation=None) -> np.ndarray:
@@ -91,30 +148,24 @@ class QuadraticMotion:
         P = as_float_array("poses", poses, (3, 4, 4), finite=True)
         if len(set(t.tolist())) != 3:
             raise _core.InvalidInputError(f"times: expected three distinct times, got {t.tolist()}")
-        V = np.vander(t, 3, increasing=True)  # rows (1, t, t^2)
-        c = np.linalg.solve(V, P.reshape(3, 16)).reshape(3, 4, 4)
-        c[0, 3] = (0.0, 0.0, 0.0, 1.0)
-        c[1:, 3] = 0.0
-        return cls(c)
+        return cls(through_coeffs(t, P))
 
     @classmethod
     def screw(cls, pose, velocity, angular_velocity, t_range=(0.0, 1.0)) -> QuadraticMotion:
-        """Quadratic fit (through start, middle and end of ``t_range``) of the rigid motion
-        that translates the pose's origin at ``velocity`` and spins it at constant
-        ``angular_velocity`` (rad per unit t, world axes) about that moving origin."""
+        """The motion that translates the pose's origin at ``velocity`` (exactly: it is
+        linear) and spins it at constant ``angular_velocity`` (rad per unit t, world
+        axes) about that moving origin, its rotation fitted by the quadratic through
+        the start, middle and end of ``t_range`` (``screw_coeffs``)."""
         P0 = as_float_array("pose", pose, (4, 4), finite=True)
         v = as_float_array("velocity", velocity, (3,), finite=True)
         w = as_float_array("angular_velocity", angular_velocity, (3,), finite=True)
         t0, t1 = float(t_range[0]), float(t_range[1])
-        times = np.array([t0, 0.5 * (t0 + t1), t1])
-        poses = []
+        if not t0 != t1:
+            raise _core.InvalidInputError(f"t_range: expected two distinct times, got {(t0, t1)}")
         # Inputs near the top of the double range overflow here; the motion's own
         # check then names the result (a typed error), so numpy need not warn.
         with np.errstate(all="ignore"):
-            for t in times:
-                dt = t - t0
-                poses.append(_pose(rotation_matrix(w, np.linalg.norm(w) * dt) @ P0[:3, :3], P0[:3, 3] + v * dt))
-        return cls.through(times, poses)
+            return cls(screw_coeffs(P0[:3, :3], P0[:3, 3], v, w, (t0, t1)))
 
     def transformed(self, T) -> QuadraticMotion:
         """The motion seen after the fixed affine map ``T`` ((4, 4)): ``T @ M(t)``."""

@@ -10,11 +10,15 @@ exactly when the boxes intersect; its 30 facets (the seed's BMS planes) are
 * ``EE``: an edge of A against an edge of B (18 of them).
 
 A facet's outward normal points from A towards B. See ``_core/box_ccd.hpp`` for
-the algebra and ``Tolerances`` for every tolerance.
+the map of the core, ``Tolerances`` for the caller's tolerances and
+``_core/constants.hpp`` for every fixed constant. Every query says what happened
+(``Outcome``): a contact, no contact, or a degraded answer (a cap reached, roots
+closer than doubles can separate), never a degraded answer dressed as a hit.
 """
 
 from __future__ import annotations
 
+import enum
 from dataclasses import dataclass
 from typing import NamedTuple, Optional
 
@@ -27,6 +31,7 @@ from ._core import (
     InvalidInputError,
     InvalidMotionError,
     InvalidTimeRangeError,
+    InvalidToleranceError,
     NonFiniteInputError,
     SingularMotionError,
 )
@@ -36,6 +41,7 @@ from .motion import QuadraticMotion
 __all__ = [
     "Contact",
     "Feature",
+    "Outcome",
     "Plane",
     "Tolerances",
     "bms_planes",
@@ -49,12 +55,17 @@ __all__ = [
     "InvalidMotionError",
     "SingularMotionError",
     "InvalidTimeRangeError",
+    "InvalidToleranceError",
 ]
+
+
+_CORE_DEFAULTS = _core.Tolerances()  # the defaults are defined once, in _core/constants.hpp
 
 
 @dataclass(frozen=True)
 class Tolerances:
-    """Every tolerance of the solver, in one frozen object.
+    """The caller's tolerances, in one frozen object (every fixed constant of the
+    solver is in ``_core/constants.hpp``, each with its reason).
 
     Guarantee: a reported contact time t is never later than the true first
     contact of the motions as given, and a pair that comes within
@@ -62,44 +73,68 @@ class Tolerances:
     half edge lengths) is reported as touching. Rounding can only move the answer
     earlier: each facet's evaluation error is bounded by ``rounding`` machine
     epsilons times a magnitude bound of its terms, and that bound is added to
-    the touching tolerance.
+    the touching tolerance. The magnitudes are those of the pair in its own frame
+    (a shared translation is taken off both boxes), so a scene far from the
+    origin is as exact as one at it.
 
     Attributes
     ----------
     gap_rel : float
         Touching tolerance relative to the boxes' world size (default 1e-12: a
-        1e-9 relative gap is a clear miss, rounding noise (~1e-16) a hit); at most 0.1.
+        1e-9 relative gap is a clear miss, rounding noise (~1e-16) a hit); in [0, 0.1].
     rounding : float
         Multiple of DBL_EPSILON allowed per facet for rounding (default 64:
         the facet polynomials take about 20 dependent operations to build and
         evaluate, and each coefficient sums up to 12 products; measured, about 10x
-        what rounding actually costs: benchmarks/solver_tradeoff.py); at most 1e10.
+        what rounding actually costs: benchmarks/solver_tradeoff.py); in [0, 1e10].
+        0 drops the never-late guarantee.
     max_steps : int
-        Cap on advancement steps per section (each passes one root of one of the
-        30 facet polynomials of degree <= 6, so exact arithmetic needs at most
-        180). On reaching it the solver reports contact at the current time.
+        Cap on the advancement steps of one BMS search (each passes one root of
+        one of the 30 facet polynomials of degree <= 6, or an octant switch, so
+        exact arithmetic needs at most 180 per section); >= 1. On reaching it the
+        solver reports contact at the current time with ``Outcome.STEP_CAP``.
+
+    Raises ``InvalidToleranceError`` for a value outside those ranges (checked by
+    the core, which keeps only valid tolerances).
     """
 
-    gap_rel: float = 1e-12
-    rounding: float = 64.0
-    max_steps: int = 400
+    gap_rel: float = _CORE_DEFAULTS.gap_rel
+    rounding: float = _CORE_DEFAULTS.rounding
+    max_steps: int = _CORE_DEFAULTS.max_steps
 
     def __post_init__(self):
-        # Upper bounds keep the tolerances meaningful: a touching tolerance of a tenth
-        # of the boxes' size, or a rounding allowance of 1e10 eps (2e-6 relative),
-        # is already far past any use.
-        for name, top in (("gap_rel", 0.1), ("rounding", 1e10)):
-            v = getattr(self, name)
-            if not (np.isfinite(v) and 0.0 <= v <= top):
-                raise InvalidInputError(f"Tolerances.{name} is {v!r}; expected a number in [0, {top:g}]")
-        if int(self.max_steps) < 1:
-            raise InvalidInputError(f"Tolerances.max_steps is {self.max_steps!r}; expected an integer >= 1")
-        core = _core.Tolerances()
-        core.gap_rel, core.rounding, core.max_steps = float(self.gap_rel), float(self.rounding), int(self.max_steps)
+        try:
+            core = _core.Tolerances(float(self.gap_rel), float(self.rounding), int(self.max_steps))
+        except (TypeError, ValueError, OverflowError) as e:
+            if isinstance(e, InvalidInputError):
+                raise
+            raise InvalidToleranceError(f"Tolerances({self.gap_rel!r}, {self.rounding!r}, {self.max_steps!r}): "
+                                        f"expected two numbers and an integer ({e})") from None
         object.__setattr__(self, "_core", core)
 
 
 DEFAULT_TOLERANCES = Tolerances()
+
+
+class Outcome(enum.IntEnum):
+    """What a query found (the core's ``Outcome``, same values).
+
+    ``SEPARATED``: no contact in the range. ``HIT``: a contact, ``Contact.t`` its
+    time. ``INITIAL``: touching or overlapping at ``t_range[0]``. The degraded
+    ones, whose ``t`` is early (the boxes are apart before it) but not proven a
+    contact: ``STEP_CAP`` (the search reached a cap: ``Tolerances.max_steps`` or
+    the core's cap on search windows) and ``CLUSTERED_ROOTS`` (the facet root it
+    stopped at is one of a cluster that double precision cannot separate).
+    ``NON_FINITE``: an input row was not finite (step-path queries only; the
+    solver's own entry points raise ``NonFiniteInputError`` instead).
+    """
+
+    SEPARATED = 0
+    HIT = 1
+    INITIAL = 2
+    STEP_CAP = 3
+    CLUSTERED_ROOTS = 4
+    NON_FINITE = 5
 
 
 class Feature(NamedTuple):
@@ -118,28 +153,36 @@ class Contact(NamedTuple):
     Attributes
     ----------
     t : float
-        Contact time in ``t_range`` (``t_range[0]`` when ``initial``).
+        Contact time in ``t_range`` (``t_range[0]`` when ``initial``). NaN for
+        ``Outcome.NON_FINITE``.
     point : (3,) float
         World contact point: the vertex for a face-vertex contact, the midpoint of
-        the closest points of the two edges for an edge-edge contact.
+        the closest points of the two edges for an edge-edge contact. NaN when
+        there is no facet (``NON_FINITE``).
     normal : (3,) float
         Unit world normal of the touching facet, from A towards B. For an initial
-        overlap, the facet of least penetration.
-    feature : Feature
-        Which BMS plane touched and which elements of A and B.
+        overlap, the facet of least penetration. NaN when there is no facet.
+    feature : Feature or None
+        Which BMS plane touched and which elements of A and B (None when there is
+        no facet).
     initial : bool
         True when the boxes already touch or overlap at ``t_range[0]``.
+    outcome : Outcome
+        ``HIT`` or ``INITIAL`` for a contact; ``STEP_CAP`` or ``CLUSTERED_ROOTS``
+        for a degraded answer (early, not proven); ``NON_FINITE`` from the step
+        path. Never ``SEPARATED`` (that is ``None``).
     """
 
     t: float
     point: np.ndarray
     normal: np.ndarray
-    feature: Feature
+    feature: Optional[Feature]
     initial: bool
+    outcome: Outcome
 
 
 # The core builds Contact and Feature instances itself (no Python code runs per hit).
-_core.set_result_types(Contact, Feature)
+_core.set_result_types(Contact, Feature, Outcome)
 
 
 class Plane(NamedTuple):
@@ -191,8 +234,9 @@ def time_of_impact(
 
 
 def time_of_impact_batch(
-    lo_a, hi_a, coeffs_a, lo_b, hi_b, coeffs_b, t_range=(0.0, 1.0), tolerances: Tolerances = DEFAULT_TOLERANCES
-) -> np.ndarray:
+    lo_a, hi_a, coeffs_a, lo_b, hi_b, coeffs_b, t_range=(0.0, 1.0), tolerances: Tolerances = DEFAULT_TOLERANCES,
+    states: bool = False,
+):
     """Contact times of N box pairs, NaN where a pair never touches.
 
     Parameters
@@ -201,12 +245,21 @@ def time_of_impact_batch(
         Box corners (each box in its own frame).
     coeffs_a, coeffs_b : (N, 3, 4, 4) float
         Quadratic motions.
+    states : bool
+        Also return each row's ``Outcome``.
 
     Returns
     -------
-    (N,) float64. Bad rows raise one ``InvalidInputError`` subclass whose message
-    names the first bad row's problem and lists every bad row's index. The GIL is
-    released while solving.
+    t : (N,) float64
+        Contact time, NaN where the pair stays apart (``Outcome.SEPARATED``). A
+        degraded row (``STEP_CAP``, ``CLUSTERED_ROOTS``) has its early time here
+        too (the pair is apart before it): ask for ``states`` to tell it from a hit.
+    states : (N,) int8, only with ``states=True``
+        Each row's ``Outcome`` value (``Outcome(states[i])`` names it).
+
+    Bad rows raise one ``InvalidInputError`` subclass whose message names the
+    first bad row's problem and lists every bad row's index. The GIL is released
+    while solving.
     """
     t0, t1 = _t_range(t_range)
     arrays = [
@@ -223,7 +276,7 @@ def time_of_impact_batch(
     n = {len(x) for x in arrays}
     if len(n) != 1:
         raise InvalidShapeError(f"batch arrays disagree on N: got lengths {[len(x) for x in arrays]}")
-    return _core.solve_batch(*arrays, t0, t1, _core_tolerances(tolerances))
+    return _core.solve_batch(*arrays, t0, t1, _core_tolerances(tolerances), bool(states))
 
 
 def sections(a, m_a, b, m_b, t_range=(0.0, 1.0), tolerances: Tolerances = DEFAULT_TOLERANCES) -> np.ndarray:

@@ -1,4 +1,5 @@
-"""Seeded random box pairs in named families, shared by the oracle and property tests."""
+"""Seeded random box pairs in named families, shared by the oracle and property tests,
+and a check of two pairs whose answers are known in closed form."""
 
 from __future__ import annotations
 
@@ -63,3 +64,23 @@ def batch_rows(n, gap_x=5.0):
     cb = c.copy()
     cb[:, 0, 0, 3] = gap_x
     return [lo, hi, c, lo.copy(), hi.copy(), cb]
+
+
+def assert_known_answers():
+    """Two unit cubes, B thrown from x = 3 at -4 per unit t: faces meet at t = 0.5;
+    B thrown at y = 5 instead never touches. The hostile-input tests end with this
+    (the solver must still answer exactly, single and batch, whatever came before)."""
+    # Imported here: hypothesis keeps this module alive past the core's teardown, and
+    # a module-level reference to the queries (their default Tolerances) would then
+    # show as a nanobind leak at exit.
+    from bullet_boxccd import Box, time_of_impact, time_of_impact_batch
+
+    cube, still = Box.centered((0.5, 0.5, 0.5)), QuadraticMotion.static()
+    hit = QuadraticMotion.ballistic((3.0, 0.1, 0.2), (-4.0, 0, 0))
+    miss = QuadraticMotion.ballistic((3.0, 5.0, 0), (-4.0, 0, 0))
+    c = time_of_impact(cube, still, cube, hit)
+    assert c is not None and abs(c.t - 0.5) < 1e-11, c
+    assert time_of_impact(cube, still, cube, miss) is None
+    lo, hi = np.full((2, 3), -0.5), np.full((2, 3), 0.5)
+    t = time_of_impact_batch(lo, hi, np.array([still.coeffs] * 2), lo, hi, np.array([hit.coeffs, miss.coeffs]))
+    assert abs(t[0] - 0.5) < 1e-11 and np.isnan(t[1]), t

@@ -1,5 +1,7 @@
 """Invariances of the answer (hypothesis, deterministic profile): a rigid transform
-applied to both motions, swapping the boxes, and a linear change of time."""
+applied to both motions, swapping the boxes, and a linear change of time. Each
+example's first answer is also judged against the oracle (a real first contact,
+or a real miss), so a solver that is consistently wrong fails here too."""
 
 from __future__ import annotations
 
@@ -7,7 +9,7 @@ import numpy as np
 from cases import FAMILIES, make_case
 from hypothesis import given
 from hypothesis import strategies as st
-from oracle import mp_gap
+from oracle import check_answer, mp_gap
 
 from bullet_boxccd import Box, QuadraticMotion, time_of_impact
 from bullet_boxccd.motion import rotation_matrix
@@ -42,6 +44,7 @@ def test_invariant_under_a_shared_rigid_transform(case, angle, shift):
     T[:3, :3] = rotation_matrix((0.3, -0.5, 0.8), angle)
     T[:3, 3] = np.array(shift) * case.size()
     c1 = solve(case)
+    check_answer(case, c1)
     c2 = solve(case, QuadraticMotion(case.coeffs_a).transformed(T), QuadraticMotion(case.coeffs_b).transformed(T))
     same_answer(case, c1, c2)
     if c1 is not None and c2 is not None and abs(c1.t - c2.t) <= 1e-9 * (case.t1 - case.t0) \
@@ -52,6 +55,7 @@ def test_invariant_under_a_shared_rigid_transform(case, angle, shift):
 @given(cases)
 def test_swapping_the_boxes_flips_the_normal(case):
     c1, c2 = solve(case), solve(case, swap=True)
+    check_answer(case, c1)
     same_answer(case, c1, c2)
     if c1 is not None and c2 is not None and c1.t == c2.t and not c1.initial:
         swapped = {"OV": "VO", "VO": "OV", "EE": "EE"}[c1.feature.kind]
@@ -66,5 +70,6 @@ def test_linear_change_of_time(case, scale, offset):
     m_b = QuadraticMotion(case.coeffs_b).reparametrized(scale, offset)
     u_range = ((case.t0 - offset) / scale, (case.t1 - offset) / scale)
     c1 = solve(case)
+    check_answer(case, c1)
     c2 = solve(case, m_a, m_b, t_range=u_range)
     same_answer(case, c1, c2, t_map=lambda u: scale * u + offset)

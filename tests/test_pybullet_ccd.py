@@ -10,7 +10,7 @@ import pybullet as p
 import pybullet_data
 import pytest
 
-from bullet_boxccd import BoxCCD, _core
+from bullet_boxccd import BoxCCD, Outcome, _core
 from bullet_boxccd.motion import quat_to_matrix
 
 DT = 1 / 240
@@ -181,6 +181,9 @@ def test_two_fast_boxes_collide_and_conserve_momentum(cid, angle_deg):
         va = np.array(p.getBaseVelocity(a, physicsClientId=cid)[0])
         vb = np.array(p.getBaseVelocity(b, physicsClientId=cid)[0])
         assert events, "no CCD contact"
+        # Every contact came from an exact search whose outcome the stats count; none is degraded here.
+        found = ccd.stats.outcomes[Outcome.HIT] + ccd.stats.outcomes[Outcome.INITIAL]
+        assert found >= len(events) and ccd.stats.degraded == 0, (ccd.stats.outcomes, len(events))
         assert not np.allclose(va, [200, 0, 0]), "the boxes passed through each other"
         assert np.linalg.norm(va + 2.5 * vb - m0) <= 0.01 * np.linalg.norm(m0), (k, va, vb)
 

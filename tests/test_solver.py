@@ -7,7 +7,7 @@ from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 import pytest
-from cases import FAMILIES, batch_rows, make_case
+from cases import FAMILIES, assert_known_answers, batch_rows, make_case
 
 from bullet_boxccd import (
     Box,
@@ -18,9 +18,13 @@ from bullet_boxccd import (
     InvalidMotionError,
     InvalidShapeError,
     InvalidTimeRangeError,
+    InvalidToleranceError,
     NonFiniteInputError,
+    Outcome,
     QuadraticMotion,
     SingularMotionError,
+    Tolerances,
+    _core,
     time_of_impact,
     time_of_impact_batch,
 )
@@ -100,15 +104,19 @@ def test_face_of_b_against_vertex_of_a():
 
 
 def test_touching_at_range_start_is_initial():
-    # M(2) puts B at x = 1: face to face with A, then moving away.
-    c = time_of_impact(CUBE, STATIC, CUBE, QuadraticMotion.ballistic((-1.0, 0, 0), (1, 0, 0)), (2.0, 3.0))
+    # M(2) puts B at x = 1: face to face with A, then moving away (apart from then on).
+    m_b = QuadraticMotion.ballistic((-1.0, 0, 0), (1, 0, 0))
+    c = time_of_impact(CUBE, STATIC, CUBE, m_b, (2.0, 3.0))
     assert c.initial and c.t == 2.0
+    assert time_of_impact(CUBE, STATIC, CUBE, m_b, (2.001, 3.0)) is None
 
 
 def test_overlapping_at_start_is_initial_with_least_penetration_normal():
     c = time_of_impact(CUBE, STATIC, CUBE, QuadraticMotion.ballistic((0.9, 0.2, 0.0), (0, 0, 0)), (0, 1))
     assert c.initial and c.t == 0.0
     np.testing.assert_allclose(c.normal, (1, 0, 0), atol=1e-12)
+    # A hair further out (0.1 of a box apart), the same pair never touches.
+    assert time_of_impact(CUBE, STATIC, CUBE, QuadraticMotion.ballistic((1.1, 0.2, 0.0), (0, 0, 0)), (0, 1)) is None
 
 
 def test_touching_at_range_end():
@@ -136,6 +144,9 @@ def test_grazing_at_zero_gap_is_a_hit():
 
 def test_grazing_at_1e9_gap_is_a_miss():
     assert time_of_impact(CUBE, STATIC, CUBE, parabola(1e-9)) is None
+    # 1e-9 lower, the apex dips into A: a hit at the crossing just before t = 0.5.
+    c = time_of_impact(CUBE, STATIC, CUBE, parabola(-1e-9))
+    assert c is not None and 0.49996 < c.t < 0.5
 
 
 def test_sliding_face_on_face_contact_is_found_when_faces_meet():
@@ -189,6 +200,8 @@ def test_batch_is_deterministic_across_batch_sizes():
     parts = np.concatenate([time_of_impact_batch(args[0][i:i + 7], args[1][i:i + 7], ca[i:i + 7], lo_b[i:i + 7],
                                                  hi_b[i:i + 7], cb[i:i + 7]) for i in range(0, 50, 7)])
     np.testing.assert_array_equal(whole, parts)
+    assert 0 < np.isnan(whole).sum() < len(whole)  # hits and misses both
+    assert np.all(whole[~np.isnan(whole)] > 0.0)  # no pair of the family starts in contact
 
 
 def test_batches_from_several_threads_agree_with_one():
@@ -212,6 +225,7 @@ def test_empty_batch():
     out = time_of_impact_batch(np.zeros((0, 3)), np.zeros((0, 3)), np.zeros((0, 3, 4, 4)), np.zeros((0, 3)),
                                np.zeros((0, 3)), np.zeros((0, 3, 4, 4)))
     assert out.shape == (0,)
+    assert_known_answers()  # and the next (non-empty) calls are answered as ever
 
 
 def test_batch_names_every_bad_row():
@@ -221,7 +235,8 @@ def test_batch_names_every_bad_row():
     with pytest.raises(InvalidBoxError) as e:
         time_of_impact_batch(*rows)
     msg = str(e.value)
-    assert msg.startswith("row 3: lo_a/hi_a: lo[1] = 2 >= hi[1] = 1"), msg and "2 bad row(s): 3, 7" in msg
+    assert msg.startswith("row 3: lo_a/hi_a: lo[1] = 2 >= hi[1] = 1"), msg
+    assert "[2 bad row(s): 3, 7]" in msg, msg
 
 
 def test_batch_reports_a_singular_row():
@@ -245,10 +260,12 @@ def test_batch_shapes():
 
 def test_batch_accepts_non_contiguous_and_other_dtypes():
     rows = batch_rows(6)
+    rows[5][:3, 1, 0, 3] = -4.0  # three of them thrown at A: faces meet at 5 - 4 t = 2
+    want = time_of_impact_batch(*rows)
+    assert np.all(np.abs(want[:3] - 0.75) < 1e-11) and np.all(np.isnan(want[3:]))
     rows[0] = np.asfortranarray(rows[0]).astype(np.float32)
     rows[2] = np.concatenate([rows[2], rows[2]])[::2]
-    out = time_of_impact_batch(*rows)
-    assert out.shape == (6,) and np.all(np.isnan(out))
+    np.testing.assert_array_equal(time_of_impact_batch(*rows), want)
 
 
 # ------------------------------------------------------------------- bad input
@@ -333,6 +350,7 @@ def test_contacts_behave_like_their_named_tuples():
     """The core builds Contact and Feature itself: they must compare, hash, pickle and
     convert like instances made in Python."""
     c = time_of_impact(CUBE, STATIC, CUBE, QuadraticMotion.ballistic((5.0, 0.3, 0.2), (-10.0, 0.0, 0.0)))
+    assert abs(c.t - 0.4) < 1e-11 and c.feature == ("OV", "X'", "X")  # faces meet at 5 - 10 t = 1
     f = Feature(*c.feature)
     assert type(c) is Contact and type(c.feature) is Feature
     assert c.feature == f and hash(c.feature) == hash(f) and {f: 1}[c.feature] == 1
@@ -346,10 +364,128 @@ def test_time_range_forms_agree():
     """Ints, lists and arrays are valid time ranges and give the same answer."""
     m_b = QuadraticMotion.ballistic((5.0, 0.3, 0.2), (-10.0, 0.0, 0.0))
     ts = {time_of_impact(CUBE, STATIC, CUBE, m_b, r).t for r in [(0.0, 1.0), (0, 1), [0, 1], np.array([0.0, 1.0])]}
-    assert len(ts) == 1
+    assert len(ts) == 1 and abs(ts.pop() - 0.4) < 1e-11  # faces meet at 5 - 10 t = 1
 
 
 def test_errors_are_value_errors():
     for e in (InvalidBoxError, InvalidMotionError, InvalidShapeError, InvalidTimeRangeError, NonFiniteInputError,
               SingularMotionError):
         assert issubclass(e, InvalidInputError) and issubclass(e, ValueError)
+
+
+# -------------------------------------------------------------------- outcomes
+def test_contacts_say_hit_or_initial():
+    hit = time_of_impact(CUBE, STATIC, CUBE, QuadraticMotion.ballistic((3.0, 0.1, 0.2), (-4.0, 0, 0)))
+    assert hit.outcome is Outcome.HIT and not hit.initial and hit.t == pytest.approx(0.5, abs=1e-11)
+    start = time_of_impact(CUBE, STATIC, CUBE, QuadraticMotion.ballistic((0.9, 0.2, 0.0), (0, 0, 0)))
+    assert start.outcome is Outcome.INITIAL and start.initial and start.t == 0.0
+
+
+def test_step_cap_is_never_a_plain_hit():
+    """A search stopped by Tolerances.max_steps answers early with STEP_CAP, not HIT."""
+    m_b = QuadraticMotion.ballistic((3.0, 3.0, 0.0), (-4.0, -4.0, 0.0))  # corner first: 0.5 exactly
+    capped = time_of_impact(CUBE, STATIC, CUBE, m_b, tolerances=Tolerances(max_steps=1))
+    full = time_of_impact(CUBE, STATIC, CUBE, m_b)
+    assert full.outcome is Outcome.HIT and full.t == pytest.approx(0.5, abs=1e-11)
+    assert capped.outcome is Outcome.STEP_CAP and capped.t <= full.t
+
+
+def test_an_exact_double_root_without_tolerance_is_clustered():
+    """B's y(t) = 2 - 6t + 18t^2 / 2 touches A's top face at t = 1/3 exactly (a double
+    root at a point no double represents). With gap_rel = rounding = 0 the two
+    roots cannot be separated: CLUSTERED_ROOTS at the cluster's start, early."""
+    m_b = QuadraticMotion.ballistic((0.3, 2.0, 0.1), (0.0, -6.0, 0.0), (0.0, 18.0, 0.0))
+    c = time_of_impact(CUBE, STATIC, CUBE, m_b, tolerances=Tolerances(gap_rel=0.0, rounding=0.0))
+    assert c.outcome is Outcome.CLUSTERED_ROOTS and c.t <= 1 / 3 and 1 / 3 - c.t < 1e-15
+    # With the default tolerance the touch is a plain hit (the shift separates the roots).
+    c = time_of_impact(CUBE, STATIC, CUBE, m_b)
+    assert c.outcome is Outcome.HIT and 0 < 1 / 3 - c.t < 1e-5
+
+
+def test_batch_states_name_each_rows_outcome():
+    rows = batch_rows(3, gap_x=5.0)  # 2 m cubes, B static at x = 5: apart
+    rows[5][0, 0, 0, 3] = 1.5  # overlapping at the start
+    rows[5][1, 1, 0, 3] = -4.0  # from x = 5 at -4 per unit t: faces meet at 5 - 4 t = 2, t = 0.75
+    t, states = time_of_impact_batch(*rows, states=True)
+    assert states.dtype == np.int8 and states.shape == (3,)
+    assert [Outcome(k) for k in states] == [Outcome.INITIAL, Outcome.HIT, Outcome.SEPARATED]
+    assert t[0] == 0.0 and t[1] == pytest.approx(0.75, abs=1e-11) and np.isnan(t[2])
+    np.testing.assert_array_equal(t, time_of_impact_batch(*rows))
+
+
+def _path_row(position):
+    """A step-path row (step_path.hpp): a unit cube at rest at `position`."""
+    row = np.zeros(42)
+    row[:16] = np.eye(4).ravel()
+    row[3], row[7], row[11] = position
+    row[23:39] = np.eye(4).ravel()
+    row[39:42] = 0.5
+    return row
+
+
+def test_step_path_queries_say_a_row_is_not_finite():
+    """A row with NaN is not "apart": first_touches and path_contact say NON_FINITE."""
+    rows = np.array([_path_row((0.0, 0.0, 0.0)), _path_row((0.5, 0.0, 0.0)), _path_row((5.0, 0.0, 0.0))])
+    rows[2, 3] = np.nan
+    pairs = np.array([[0, 1], [0, 2]], dtype=np.int64)
+    tau, states, solves = _core.first_touches(rows, pairs, 0.05, Tolerances()._core, states=True)
+    # Pair 0 touches at the start: the depth test says so without a solve.
+    assert [Outcome(k) for k in states] == [Outcome.INITIAL, Outcome.NON_FINITE] and solves == 0
+    assert tau[0] == 0.0 and np.isnan(tau[1])
+    c = _core.path_contact(rows[[0, 2]], 0.0, 1.0, Tolerances()._core)
+    assert c.outcome is Outcome.NON_FINITE and c.feature is None and np.all(np.isnan(c.point))
+    c = _core.path_contact(rows[[0, 1]], 0.0, 1.0, Tolerances()._core)
+    assert c.outcome is Outcome.INITIAL and c.feature.kind in ("OV", "VO", "EE")
+
+
+def test_link_path_contact_says_what_happened():
+    """paths_contact (the first touch on any two box paths, with its contact) returns
+    None only when the boxes stay apart; otherwise a Contact whose outcome says what
+    happened: a slide into a cube is a HIT at the closed-form time, a pair touching at
+    the start INITIAL (a row path with NaN is refused when it is built)."""
+    tol = Tolerances()._core
+    still = _core.RowBoxPath(_path_row((0.0, 0.0, 0.0)))
+    moving = _path_row((0.5, 0.0, 0.0))
+    moving[16] = -3.5  # from x = 4 to 0.5 over the step: the faces meet at x = 1, tau = 3 / 3.5
+    t, _, c = _core.paths_contact(still, _core.RowBoxPath(moving), 0.05, tol)
+    assert c.outcome is Outcome.HIT and c.feature.kind in ("OV", "VO", "EE")
+    assert t == c.t and abs(t - 3 / 3.5) < 1e-9 and t <= 3 / 3.5
+    assert _core.paths_first_touch(still, _core.RowBoxPath(moving), 0.05, tol, state=True)[:2] == (t, int(Outcome.HIT))
+    t, _, c = _core.paths_contact(still, _core.RowBoxPath(_path_row((0.5, 0.0, 0.0))), 0.05, tol)
+    assert t == 0.0 and c.outcome is Outcome.INITIAL and c.initial
+    t, _, c = _core.paths_contact(still, _core.RowBoxPath(_path_row((5.0, 0.0, 0.0))), 0.05, tol)
+    assert np.isnan(t) and c is None
+
+
+# ------------------------------------------------------------------ tolerances
+def test_tolerance_defaults_are_the_cores():
+    core, py = _core.Tolerances(), Tolerances()
+    assert (py.gap_rel, py.rounding, py.max_steps) == (core.gap_rel, core.rounding, core.max_steps)
+    assert (py._core.gap_rel, py._core.rounding, py._core.max_steps) == (core.gap_rel, core.rounding, core.max_steps)
+
+
+@pytest.mark.parametrize(
+    "kwargs, text",
+    [
+        (dict(gap_rel=-5.0), r"gap_rel is -5; expected a number in \[0, 0.1\]"),
+        (dict(gap_rel=0.2), "gap_rel is 0.2"),
+        (dict(gap_rel=np.nan), "gap_rel is nan"),
+        (dict(rounding=-1.0), "rounding is -1"),
+        (dict(rounding=np.inf), "rounding is inf"),
+        (dict(max_steps=0), r"max_steps is 0; expected an integer >= 1"),
+    ],
+)
+def test_the_core_validates_tolerances(kwargs, text):
+    """A negative gap would void "never late"; zero steps would answer nothing. The core
+    refuses them, whoever builds the object."""
+    with pytest.raises(InvalidToleranceError, match=text):
+        _core.Tolerances(**kwargs)
+    with pytest.raises(InvalidToleranceError, match=text):
+        Tolerances(**kwargs)
+    assert issubclass(InvalidToleranceError, InvalidInputError)
+
+
+def test_core_tolerances_are_read_only():
+    t = _core.Tolerances()
+    with pytest.raises(AttributeError):
+        t.gap_rel = 1.0

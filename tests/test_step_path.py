@@ -10,7 +10,7 @@ import pytest
 from oracle import SIGNS, sat_gap
 from scipy.spatial.transform import Rotation
 
-from bullet_boxccd import _core
+from bullet_boxccd import Outcome, _core
 
 DT = 1.0 / 240.0
 FIT_TOLERANCE = 0.05
@@ -221,14 +221,20 @@ def test_sweeper_touches_is_its_parts(all_others):
         n_fast = int(rng.integers(1, 5))
         given = order[:n_fast] if all_others else order[:n_fast + int(rng.integers(0, 9 - n_fast))]
         sw.state[:] = states
-        n_pairs, solves, found = sw.touches(DT, given.tolist(), n_fast, all_others, FIT_TOLERANCE, tol, 0.0, 0.02)
+        outcomes = np.zeros(len(Outcome), dtype=np.int64)
+        n_pairs, solves, found = sw.touches(DT, given.tolist(), n_fast, all_others, FIT_TOLERANCE, tol, 0.0, 0.02,
+                                            outcomes)
         want_boxes = np.concatenate([given, np.setdiff1d(np.arange(9), given)]) if all_others else given
         rows = rows_of(states, boxes)[want_boxes]
         frame = np.array([f for f, _, _ in boxes], dtype=np.int64)[want_boxes]
         want_pairs = _core.candidate_pairs(_core.swept_bounds(rows), n_fast, frame, frame_body, self_collides, group,
                                            mask, trial % 2)
-        want_tau, want_solves = _core.first_touches(rows, want_pairs, FIT_TOLERANCE, tol, 0.0, 0.02)
+        want_tau, want_states, want_solves = _core.first_touches(rows, want_pairs, FIT_TOLERANCE, tol, 0.0, 0.02,
+                                                                 states=True)
         assert n_pairs == len(want_pairs) and solves == want_solves
+        # Every candidate pair's outcome is counted; a touch is never counted as SEPARATED.
+        assert outcomes.tolist() == np.bincount(want_states, minlength=len(Outcome)).tolist()
+        assert np.array_equal(np.isin(want_states, [Outcome.SEPARATED, Outcome.NON_FINITE]), np.isnan(want_tau))
         hit = ~np.isnan(want_tau)
         if not hit.any():
             assert found is None

@@ -5,6 +5,7 @@
 #include <nanobind/ndarray.h>
 #include <nanobind/stl/string.h>
 #include <nanobind/stl/array.h>
+#include <nanobind/stl/optional.h>
 #include <nanobind/stl/tuple.h>
 
 // numpy's own C API makes the two small arrays of a contact: an array made
@@ -15,6 +16,7 @@
 
 #include <algorithm>
 #include <initializer_list>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -29,9 +31,9 @@ namespace {
 
 template <long... Shape>
 using In = nb::ndarray<const double, nb::shape<Shape...>, nb::c_contig, nb::device::cpu>;
-using Vec3 = In<3>;
+using Vec3In = In<3>;
 using Coeffs = In<3, 4, 4>;
-using Vec3N = In<-1, 3>;
+using Vec3InN = In<-1, 3>;
 using CoeffsN = In<-1, 3, 4, 4>;
 template <class T, long... Shape>
 using Out = nb::ndarray<nb::numpy, T, nb::shape<Shape...>>;
@@ -56,7 +58,7 @@ struct MotionData {
     double c[48];
 };
 
-BoxData make_box(const Vec3 &lo, const Vec3 &hi, const std::string &name) {
+BoxData make_box(const Vec3In &lo, const Vec3In &hi, const std::string &name) {
     check_box(lo.data(), hi.data(), name);
     BoxData b;
     std::copy(lo.data(), lo.data() + 3, b.lo);
@@ -71,13 +73,22 @@ MotionData make_motion(const Coeffs &c, const std::string &name) {
     return m;
 }
 
-Problem make_problem(const BoxData &a, const MotionData &m_a, const BoxData &b, const MotionData &m_b, double t0,
-                     double t1, const Tolerances &tol) {
+// A box and its motion as the core's input, once the time range is checked
+// (the first thing a query checks, so that its message comes first).
+BoxInput input_in_range(const BoxData &box, const MotionData &m, double t0, double t1) {
     check_time_range(t0, t1);
-    Problem p({a.lo, a.hi, m_a.c}, {b.lo, b.hi, m_b.c}, t0, t1, tol);
-    p.check_regular("m_a", "m_b");
-    return p;
+    return {box.lo, box.hi, m.c};
 }
+
+// A checked query on validated boxes and motions (built in place: a Query is not copyable).
+struct CheckedQuery {
+    Query q;
+    CheckedQuery(const BoxData &a, const MotionData &m_a, const BoxData &b, const MotionData &m_b, double t0,
+                 double t1, const Tolerances &tol)
+        : q(input_in_range(a, m_a, t0, t1), {b.lo, b.hi, m_b.c}, t0, t1, tol) {
+        q.check_regular("m_a", "m_b");
+    }
+};
 
 // Seed name of a feature from its sign triple: (1, 0, -1) -> "X'Z".
 std::string feature_name(const std::array<int8_t, 3> &signs) {
@@ -91,7 +102,7 @@ std::string feature_name(const std::array<int8_t, 3> &signs) {
 }
 
 const char *kKind[3] = {"OV", "VO", "EE"};
-int kind_index(int facet) { return facet < 6 ? 0 : facet < 12 ? 1 : 2; }
+int kind_index(int facet) { return static_cast<int>(facet_kind(facet)); }
 
 // The Python strings of the 27 feature names and 3 kinds, made once (a hit then
 // allocates none). Never freed: they live as long as the module.
@@ -111,22 +122,27 @@ const Names &names() {
     return *n;
 }
 
-// The Python result types, Contact(t, point, normal, feature, initial) and
-// Feature(kind, a, b): NamedTuples, registered by bullet_boxccd.solver at import.
+// The Python result types, Contact(t, point, normal, feature, initial, outcome) and
+// Feature(kind, a, b): NamedTuples, and the members of the Outcome enum (by
+// value), registered by bullet_boxccd.solver at import.
 struct ResultTypes {
-    nb::object contact, feature;
+    nb::object contact, feature, outcome[kOutcomes];
+    nb::object features[3 * 27 * 27];  // Feature instances made so far (feature_of)
 };
 ResultTypes &result_types() {
     static ResultTypes *r = new ResultTypes;  // never freed: lives as long as the module
     return *r;
 }
 
-void set_result_types(nb::handle contact, nb::handle feature) {
+void set_result_types(nb::handle contact, nb::handle feature, nb::handle outcome) {
     for (nb::handle t : {contact, feature})
         if (!PyType_Check(t.ptr()) || !PyType_IsSubtype((PyTypeObject *)t.ptr(), &PyTuple_Type))
             throw nb::type_error("set_result_types: expected NamedTuple classes");
-    result_types().contact = nb::borrow(contact);
-    result_types().feature = nb::borrow(feature);
+    ResultTypes &r = result_types();
+    for (int k = 0; k < kOutcomes; ++k) r.outcome[k] = outcome(k);  // Outcome(k): the enum member
+    r.contact = nb::borrow(contact);
+    r.feature = nb::borrow(feature);
+    for (nb::object &f : r.features) f = nb::object();  // instances of an earlier Feature type
 }
 
 // A new reference from the C API, or the pending Python error as an exception.
@@ -135,14 +151,16 @@ nb::object checked(PyObject *o) {
     return nb::steal(o);
 }
 
-// An instance of tuple subclass `type` holding `items`: tuple.__new__(type, items),
-// what NamedTuple._make does, without running any Python code.
+// An instance of tuple subclass `type` holding `items`: what NamedTuple._make and
+// tuple.__new__(type, items) make, allocated directly (one allocation, no Python
+// code). A NamedTuple has the tuple's layout (__slots__ = ()), so tp_alloc gives
+// a tuple of that type with its items to fill.
 nb::object new_named(const nb::object &type, std::initializer_list<nb::handle> items) {
-    nb::object t = checked(PyTuple_New((Py_ssize_t)items.size()));
+    PyTypeObject *tp = (PyTypeObject *)type.ptr();
+    nb::object t = checked(tp->tp_alloc(tp, (Py_ssize_t)items.size()));
     Py_ssize_t i = 0;
     for (nb::handle x : items) PyTuple_SET_ITEM(t.ptr(), i++, x.inc_ref().ptr());
-    nb::object args = checked(PyTuple_Pack(1, t.ptr()));
-    return checked(PyTuple_Type.tp_new((PyTypeObject *)type.ptr(), args.ptr(), nullptr));
+    return t;
 }
 
 nb::object new_vec3(const std::array<double, 3> &v) {
@@ -152,14 +170,34 @@ nb::object new_vec3(const std::array<double, 3> &v) {
     return a;
 }
 
-// A hit as a Contact.
+// The Feature(kind, a, b) of a facet and its features, made once per combination
+// (3 x 27 x 27 at most; Features are immutable) and shared by every contact.
+nb::object feature_of(int facet, const std::array<int8_t, 3> &feat_a, const std::array<int8_t, 3> &feat_b) {
+    const auto index = [](const std::array<int8_t, 3> &sg) { return 9 * (sg[0] + 1) + 3 * (sg[1] + 1) + sg[2] + 1; };
+    const int kind = kind_index(facet);
+    ResultTypes &types = result_types();
+    nb::object &slot = types.features[(kind * 27 + index(feat_a)) * 27 + index(feat_b)];
+    if (!slot.is_valid()) {
+        const Names &n = names();
+        slot = new_named(types.feature, {n.kind[kind], n.of(feat_a), n.of(feat_b)});
+    }
+    return slot;
+}
+
+// A result as a Contact, or None when the boxes stay apart. Without a facet
+// (NonFinite) the feature is None and the point and normal are NaN.
 nb::object hit_result(const Hit &h) {
+    if (h.outcome == Outcome::Separated) return nb::none();
     const ResultTypes &types = result_types();
     if (!types.contact.is_valid()) throw std::logic_error("bullet_boxccd.solver did not register its result types");
-    const Names &n = names();
-    const nb::object feature = new_named(types.feature, {n.kind[kind_index(h.facet)], n.of(h.feat_a), n.of(h.feat_b)});
-    const nb::object t = checked(PyFloat_FromDouble(h.t)), point = new_vec3(h.point), normal = new_vec3(h.normal);
-    return new_named(types.contact, {t, point, normal, feature, h.initial ? Py_True : Py_False});
+    const bool facet = h.facet >= 0;
+    const nb::object feature = facet ? feature_of(h.facet, h.feat_a, h.feat_b) : nb::none();
+    constexpr double nan = std::numeric_limits<double>::quiet_NaN();
+    const boxccd::Vec3 none{nan, nan, nan};
+    const nb::object t = checked(PyFloat_FromDouble(h.t)), point = new_vec3(facet ? h.point : none),
+                     normal = new_vec3(facet ? h.normal : none);
+    return new_named(types.contact, {t, point, normal, feature, h.initial() ? Py_True : Py_False,
+                                     types.outcome[static_cast<int>(h.outcome)]});
 }
 
 // t_range in the common form, a tuple of two floats (or float subclasses such as
@@ -178,17 +216,17 @@ std::pair<double, double> float_pair(nb::handle h) {
 nb::object solve(const BoxData &a, const MotionData &m_a, const BoxData &b, const MotionData &m_b,
                  nb::handle t_range, const Tolerances &tol) {
     const auto [t0, t1] = float_pair(t_range);
-    const Problem p = make_problem(a, m_a, b, m_b, t0, t1, tol);
-    const Hit h = p.solve(true);
-    if (!h.hit) return nb::none();
-    return hit_result(h);
+    CheckedQuery p(a, m_a, b, m_b, t0, t1, tol);
+    return hit_result(p.q.solve(true));
 }
 
 // Validates every row (raising for the first bad one, naming all bad rows),
-// then solves with the GIL released. Output: contact t, NaN where none.
-Out<double, -1> solve_batch(const Vec3N &lo_a, const Vec3N &hi_a, const CoeffsN &c_a, const Vec3N &lo_b,
-                            const Vec3N &hi_b, const CoeffsN &c_b, double t0, double t1, const Tolerances &tol) {
+// then solves with the GIL released. Output: contact t, NaN where none; with
+// `states`, also each row's Outcome as int8.
+nb::object solve_batch(const Vec3InN &lo_a, const Vec3InN &hi_a, const CoeffsN &c_a, const Vec3InN &lo_b, const Vec3InN &hi_b,
+                       const CoeffsN &c_b, double t0, double t1, const Tolerances &tol, bool states) {
     check_time_range(t0, t1);
+    validate(tol);
     const size_t n = lo_a.shape(0);
     std::vector<size_t> bad;
     std::string first_msg;
@@ -199,12 +237,14 @@ Out<double, -1> solve_batch(const Vec3N &lo_a, const Vec3N &hi_a, const CoeffsN 
         bad.push_back(i);
     };
     auto [out, owner] = new_buffer<double>(n);
+    auto [state, state_owner] = new_buffer<int8_t>(states ? n : 0);
     {
         nb::gil_scoped_release release;
         for (size_t i = 0; i < n; ++i) {
             const BoxInput a{lo_a.data() + 3 * i, hi_a.data() + 3 * i, c_a.data() + 48 * i};
             const BoxInput b{lo_b.data() + 3 * i, hi_b.data() + 3 * i, c_b.data() + 48 * i};
             out[i] = std::numeric_limits<double>::quiet_NaN();
+            if (states) state[i] = static_cast<int8_t>(Outcome::Separated);
             // Messages get their "row i: " prefix only when a row is bad (no
             // allocation on the good path).
             const auto row = [i](const std::exception &e) { return "row " + std::to_string(i) + ": " + e.what(); };
@@ -213,11 +253,12 @@ Out<double, -1> solve_batch(const Vec3N &lo_a, const Vec3N &hi_a, const CoeffsN 
                 check_box(b.lo, b.hi, "lo_b/hi_b");
                 check_motion(a.coeffs, "coeffs_a");
                 check_motion(b.coeffs, "coeffs_b");
-                Problem p(a, b, t0, t1, tol);
+                Query p(a, b, t0, t1, tol);
                 p.check_regular("coeffs_a", "coeffs_b");
                 if (!bad.empty()) continue;  // keep collecting bad rows, skip the work
                 const Hit h = p.solve(false);
-                if (h.hit) out[i] = h.t;
+                if (h.contact()) out[i] = h.t;
+                if (states) state[i] = static_cast<int8_t>(h.outcome);
             } catch (const NonFiniteError &e) { row_error(i, 0, row(e)); }
             catch (const BoxError &e) { row_error(i, 1, row(e)); }
             catch (const MotionError &e) { row_error(i, 2, row(e)); }
@@ -236,13 +277,15 @@ Out<double, -1> solve_batch(const Vec3N &lo_a, const Vec3N &hi_a, const CoeffsN 
             default: throw SingularMotionError(msg, first_t);
         }
     }
-    return Out<double, -1>(out, {n}, owner);
+    nb::object times = nb::cast(Out<double, -1>(out, {n}, owner));
+    if (!states) return times;
+    return nb::make_tuple(times, Out<int8_t, -1>(state, {n}, state_owner));
 }
 
 Out<double, -1> sections(const BoxData &a, const MotionData &m_a, const BoxData &b, const MotionData &m_b, double t0,
                          double t1, const Tolerances &tol) {
-    const Problem p = make_problem(a, m_a, b, m_b, t0, t1, tol);
-    const std::vector<double> s = p.sections();
+    CheckedQuery p(a, m_a, b, m_b, t0, t1, tol);
+    const std::vector<double> s = p.q.sections();
     auto [out, owner] = new_buffer<double>(s.size());
     for (size_t i = 0; i < s.size(); ++i) out[i] = s[i] >= 1.0 ? t1 : t0 + s[i] * (t1 - t0);
     return Out<double, -1>(out, {s.size()}, owner);
@@ -251,14 +294,14 @@ Out<double, -1> sections(const BoxData &a, const MotionData &m_a, const BoxData 
 // (normals (30, 3), offsets (30,), [(kind, feature of A, feature of B)] * 30).
 nb::tuple planes(const BoxData &a, const MotionData &m_a, const BoxData &b, const MotionData &m_b, double t0,
                  double t1, double t, const Tolerances &tol) {
-    const Problem p = make_problem(a, m_a, b, m_b, t0, t1, tol);
+    CheckedQuery p(a, m_a, b, m_b, t0, t1, tol);
     if (!(t >= t0 && t <= t1))
         throw TimeRangeError("t = " + std::to_string(t) + " lies outside t_range = (" + std::to_string(t0) + ", " +
                              std::to_string(t1) + ")");
     auto [nrm, own_n] = new_buffer<double>(90);
     auto [off, own_o] = new_buffer<double>(30);
     int8_t fa[90], fb[90];
-    p.planes((t - t0) / (t1 - t0), nrm, off, fa, fb);
+    p.q.planes((t - t0) / (t1 - t0), nrm, off, fa, fb);
     const Names &n = names();
     nb::list features;
     for (int k = 0; k < 30; ++k)
@@ -275,6 +318,8 @@ using PathBoxes = In<2, kPathBoxSize>;
 using PathRows = In<-1, kPathBoxSize>;
 using States = In<-1, kFrameStateSize>;
 using Bytes = nb::ndarray<const uint8_t, nb::shape<-1>, nb::c_contig, nb::device::cpu>;
+// Counts by Outcome (int64, one per outcome), added to in place.
+using Counts = nb::ndarray<int64_t, nb::shape<kOutcomes>, nb::c_contig, nb::device::cpu>;
 template <long... Shape>
 using Index = nb::ndarray<const int64_t, nb::shape<Shape...>, nb::c_contig, nb::device::cpu>;
 
@@ -483,29 +528,40 @@ nb::dict layouts() {
 
 // The first touch of each of n pairs (of rows) into out, NaN where none; returns the
 // solver calls made. With creep >= 0, a pair touching at the start that does not
-// press in (presses_in) counts as none.
+// press in (presses_in) counts as none. Each pair's Outcome goes to state (if not
+// null), and is counted in counts[outcome] (if not null).
 long first_touches(const double *rows, const int64_t *pairs, size_t n, double fit_tolerance, const Tolerances &tol,
-                   double penetration, double creep, double *out) {
+                   double penetration, double creep, double *out, int8_t *state, int64_t *counts) {
     long solves = 0;
     nb::gil_scoped_release release;
     for (size_t k = 0; k < n; ++k) {
         const double *a = rows + kPathBoxSize * pairs[2 * k], *b = rows + kPathBoxSize * pairs[2 * k + 1];
         const double depth0 = path_depth(a, b, 0.0);
-        out[k] = first_touch(a, b, fit_tolerance, tol, solves, depth0);
-        if (out[k] == 0.0 && creep >= 0.0 && !presses_in(a, b, penetration, creep, depth0))
+        Outcome o;
+        out[k] = first_touch(a, b, fit_tolerance, tol, solves, o, depth0);
+        if (out[k] == 0.0 && creep >= 0.0 && !presses_in(a, b, penetration, creep, depth0)) {
             out[k] = std::numeric_limits<double>::quiet_NaN();
+            o = Outcome::Separated;
+        }
+        if (state) state[k] = static_cast<int8_t>(o);
+        if (counts) ++counts[static_cast<int>(o)];
     }
     return solves;
 }
 
-// (first touch of each pair, NaN where none; solver calls made): see first_touches.
+// (first touch of each pair, NaN where none; solver calls made), or with `states`
+// (first touch, each pair's Outcome as int8, solver calls): see first_touches.
 nb::tuple py_first_touches(const PathRows &rows, const Index<-1, 2> &pairs, double fit_tolerance,
-                           const Tolerances &tol, double penetration, double creep) {
+                           const Tolerances &tol, double penetration, double creep, bool states) {
+    validate(tol);
     const size_t n = pairs.shape(0);
     for (size_t k = 0; k < 2 * n; ++k) check_index(pairs.data()[k], rows.shape(0), "row");
     auto [out, owner] = new_buffer<double>(n);
-    const long solves = first_touches(rows.data(), pairs.data(), n, fit_tolerance, tol, penetration, creep, out);
-    return nb::make_tuple(Out<double, -1>(out, {n}, owner), solves);
+    auto [state, state_owner] = new_buffer<int8_t>(n);
+    const long solves =
+        first_touches(rows.data(), pairs.data(), n, fit_tolerance, tol, penetration, creep, out, state, nullptr);
+    if (!states) return nb::make_tuple(Out<double, -1>(out, {n}, owner), solves);
+    return nb::make_tuple(Out<double, -1>(out, {n}, owner), Out<int8_t, -1>(state, {n}, state_owner), solves);
 }
 
 // An array's elements, copied.
@@ -587,9 +643,9 @@ class Sweeper {
     // rest of them (with all_others: against every other box of the world, appended to
     // `boxes`): (number of candidate pairs, solver calls, None if no pair touches, else
     // (boxes, path rows, candidate pairs of rows, [(row a, row b, first touch)] of the
-    // pairs that touch)).
+    // pairs that touch)). Every candidate pair's Outcome is counted into `outcomes`, if given.
     nb::tuple touches(double dt, nb::handle boxes, int64_t n_moving, bool all_others, double fit_tolerance,
-                      const Tolerances &tol, double penetration, double creep) const {
+                      const Tolerances &tol, double penetration, double creep, std::optional<Counts> outcomes) const {
         std::vector<int64_t> ids = from_list(boxes, n_, "box");
         if (n_moving < 0 || size_t(n_moving) > ids.size()) throw nb::value_error("touches: n_moving out of range");
         if (all_others) {
@@ -614,7 +670,8 @@ class Sweeper {
             pair_out[2 * k + 1] = pairs[k].second;
         }
         std::vector<double> tau(m);
-        const long solves = first_touches(rows, pair_out, m, fit_tolerance, tol, penetration, creep, tau.data());
+        const long solves = first_touches(rows, pair_out, m, fit_tolerance, tol, penetration, creep, tau.data(),
+                                          nullptr, outcomes ? outcomes->data() : nullptr);
         nb::list hits;
         for (size_t k = 0; k < m; ++k)
             if (!std::isnan(tau[k])) hits.append(nb::make_tuple(pairs[k].first, pairs[k].second, tau[k]));
@@ -684,28 +741,61 @@ nb::tuple py_fit_path(const In<kPathBoxSize> &box, double lo, double hi) {
     return nb::make_tuple(Out<double, 3, 4, 4>(out, {3, 4, 4}, owner), err);
 }
 
-// Like solve: a Contact or None.
+// Like solve: a Contact (whose outcome says what happened, NON_FINITE for a row
+// that is not finite) or None.
 nb::object py_path_contact(const PathBoxes &boxes, double lo, double hi, const Tolerances &tol) {
-    const Hit h = path_contact(boxes.data(), boxes.data() + kPathBoxSize, lo, hi, tol);
-    if (!h.hit) return nb::none();
-    return hit_result(h);
+    validate(tol);
+    return hit_result(path_contact(boxes.data(), boxes.data() + kPathBoxSize, lo, hi, tol));
+}
+
+// ------------------------------------------------------- polynomial routines
+// The root queries of poly.hpp on a polynomial given by its coefficients
+// (constant first), for direct tests of the degenerate cases and the caps.
+Poly poly_of(const In<-1> &coeffs) {
+    const size_t n = coeffs.shape(0);
+    if (n < 1 || n > size_t(kMaxDeg + 1))
+        throw nb::value_error(("expected 1 to " + std::to_string(kMaxDeg + 1) + " coefficients").c_str());
+    Poly p{};
+    p.deg = int(n) - 1;
+    for (size_t i = 0; i < n; ++i) p.c[i] = coeffs.data()[i];
+    return p;
+}
+void check_interval(double lo, double hi) {
+    if (!(0.0 <= lo && lo < hi && hi <= 1.0)) throw nb::value_error("expected 0 <= lo < hi <= 1");
+}
+nb::tuple py_first_nonpositive(const In<-1> &coeffs, double lo, double hi) {
+    check_interval(lo, hi);
+    bool clustered = false;
+    const double s = first_nonpositive(poly_of(coeffs), lo, hi, clustered);
+    return nb::make_tuple(s, clustered);
+}
+nb::tuple py_first_sign_change(const In<-1> &coeffs, double lo, double hi) {
+    check_interval(lo, hi);
+    bool clustered = false;
+    const double s = first_sign_change(poly_of(coeffs), lo, hi, clustered);
+    return nb::make_tuple(s, clustered);
+}
+double py_refine_crossing(const In<-1> &coeffs, double lo, double hi, int max_secant) {
+    check_interval(lo, hi);
+    return refine_crossing(poly_of(coeffs), lo, hi, max_secant);
 }
 
 // (t, solves, Contact or None) of paths_first_touch: the contact on the fitted
-// motions when the solver found one (None: apart, or touching where no solve
-// ran: at the start, or on a piece too fast to fit).
+// motions (None: apart). Its outcome says what happened (a degraded one is early
+// and not proven); a touch where no facet was found (at the start, or on a piece
+// too fast to fit) has feature None and a NaN point and normal.
 nb::tuple py_paths_contact(const BoxPath &a, const BoxPath &b, double fit_tolerance, const Tolerances &tol) {
     if (!(fit_tolerance > 0.0))
         throw nb::value_error(("fit_tolerance must be > 0, got " + std::to_string(fit_tolerance)).c_str());
     long solves = 0;
     Hit h;
+    Outcome outcome;
     double t;
     {
         nb::gil_scoped_release release;
-        t = first_touch(a, b, fit_tolerance, tol, solves, std::numeric_limits<double>::quiet_NaN(), &h);
+        t = first_touch(a, b, fit_tolerance, tol, solves, outcome, std::numeric_limits<double>::quiet_NaN(), &h);
     }
-    nb::object contact = h.hit && h.facet >= 0 ? hit_result(h) : nb::none();
-    return nb::make_tuple(t, solves, contact);
+    return nb::make_tuple(t, solves, hit_result(h));
 }
 
 // ---------------------------------------------------------------- hooks
@@ -740,6 +830,7 @@ NB_MODULE(_core, m) {
     nb::exception<BoxError>(m, "InvalidBoxError", base);
     nb::exception<TimeRangeError>(m, "InvalidTimeRangeError", base);
     nb::exception<MotionError> motion(m, "InvalidMotionError", base);
+    nb::exception<ToleranceError>(m, "InvalidToleranceError", base);
     // SingularMotionError carries the time of collapse as attribute `t`.
     nb::object singular = nb::borrow(nb::exception<SingularMotionError>(m, "SingularMotionError", motion));
     nb::register_exception_translator(
@@ -760,19 +851,31 @@ NB_MODULE(_core, m) {
         },
         singular.ptr());
 
+    // Validated at construction and read-only after: a core Tolerances is always valid.
+    const Tolerances defaults;
     nb::class_<Tolerances>(m, "Tolerances")
-        .def(nb::init<>())
-        .def_rw("gap_rel", &Tolerances::gap_rel)
-        .def_rw("rounding", &Tolerances::rounding)
-        .def_rw("max_steps", &Tolerances::max_steps);
+        .def(
+            "__init__",
+            [](Tolerances *t, double gap_rel, double rounding, int max_steps) {
+                const Tolerances v{gap_rel, rounding, max_steps};
+                validate(v);
+                new (t) Tolerances(v);
+            },
+            nb::arg("gap_rel") = defaults.gap_rel, nb::arg("rounding") = defaults.rounding,
+            nb::arg("max_steps") = defaults.max_steps)
+        .def_ro("gap_rel", &Tolerances::gap_rel)
+        .def_ro("rounding", &Tolerances::rounding)
+        .def_ro("max_steps", &Tolerances::max_steps);
     nb::class_<BoxData>(m, "BoxData");
     nb::class_<MotionData>(m, "MotionData");
     m.def("make_box", &make_box, nb::arg("lo"), nb::arg("hi"), nb::arg("name"));
     m.def("make_motion", &make_motion, nb::arg("coeffs"), nb::arg("name"));
     m.def("feature_name", &feature_name, nb::arg("signs"));
-    m.def("set_result_types", &set_result_types, nb::arg("contact"), nb::arg("feature"));
+    m.def("set_result_types", &set_result_types, nb::arg("contact"), nb::arg("feature"), nb::arg("outcome"));
     m.def("solve", &solve);
-    m.def("solve_batch", &solve_batch);
+    m.def("solve_batch", &solve_batch, nb::arg("lo_a"), nb::arg("hi_a"), nb::arg("coeffs_a"), nb::arg("lo_b"),
+          nb::arg("hi_b"), nb::arg("coeffs_b"), nb::arg("t0"), nb::arg("t1"), nb::arg("tolerances"),
+          nb::arg("states") = false);
     m.def("sections", &sections);
     m.def("planes", &planes);
     m.def("path_depth", &py_path_depth, nb::arg("boxes"), nb::arg("taus"));
@@ -794,7 +897,8 @@ NB_MODULE(_core, m) {
         .def("fast", &Sweeper::fast, nb::arg("dt"), nb::arg("frames") = nb::none(), nb::arg("twists") = nb::none())
         .def("rows", &Sweeper::rows, nb::arg("dt"), nb::arg("boxes"))
         .def("touches", &Sweeper::touches, nb::arg("dt"), nb::arg("boxes"), nb::arg("n_moving"), nb::arg("all_others"),
-             nb::arg("fit_tolerance"), nb::arg("tolerances"), nb::arg("penetration"), nb::arg("creep"));
+             nb::arg("fit_tolerance"), nb::arg("tolerances"), nb::arg("penetration"), nb::arg("creep"),
+             nb::arg("outcomes") = nb::none());
     m.def("frame_poses", &py_frame_poses, nb::arg("state"), nb::arg("dt"), nb::arg("frames"), nb::arg("taus"));
     m.def("candidate_pairs", &py_candidate_pairs, nb::arg("bounds"), nb::arg("n_fast"), nb::arg("frame"),
           nb::arg("frame_body"), nb::arg("self_collides"), nb::arg("group"), nb::arg("mask"), nb::arg("filter_mode"));
@@ -808,8 +912,15 @@ NB_MODULE(_core, m) {
     m.def("window_rows", &py_window_rows, nb::arg("rows"), nb::arg("lo"), nb::arg("hi"));
     m.def("fit_path", &py_fit_path, nb::arg("box"), nb::arg("lo"), nb::arg("hi"));
     m.def("first_touches", &py_first_touches, nb::arg("rows"), nb::arg("pairs"), nb::arg("fit_tolerance"),
-          nb::arg("tolerances"), nb::arg("penetration") = 0.0, nb::arg("creep") = -1.0);
+          nb::arg("tolerances"), nb::arg("penetration") = 0.0, nb::arg("creep") = -1.0, nb::arg("states") = false);
     m.def("path_contact", &py_path_contact, nb::arg("boxes"), nb::arg("lo"), nb::arg("hi"), nb::arg("tolerances"));
+    m.def("first_nonpositive", &py_first_nonpositive, nb::arg("coeffs"), nb::arg("lo"), nb::arg("hi"),
+          "(s, clustered): poly.hpp's first s in (lo, hi] with p(s) <= 0 (NaN: none), for tests.");
+    m.def("first_sign_change", &py_first_sign_change, nb::arg("coeffs"), nb::arg("lo"), nb::arg("hi"),
+          "(s, clustered): poly.hpp's first sign change in (lo, hi] (NaN: none), for tests.");
+    m.def("refine_crossing", &py_refine_crossing, nb::arg("coeffs"), nb::arg("lo"), nb::arg("hi"),
+          nb::arg("max_secant"), "poly.hpp's bracketed crossing with at most max_secant Illinois steps, for tests.");
+    m.attr("kRootWidth") = kRootWidth;
     m.def("paths_contact", &py_paths_contact, nb::arg("a"), nb::arg("b"), nb::arg("fit_tolerance"),
           nb::arg("tolerances"));
     m.def("as_builtin", &as_builtin, nb::arg("fn"), nb::arg("name"), nb::arg("doc"));

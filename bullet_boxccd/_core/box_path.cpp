@@ -78,7 +78,7 @@ double pose_separation(const double *X_WA, const double *ha, const double *X_WB,
             const double a[3] = {X_WA[i], X_WA[4 + i], X_WA[8 + i]}, b[3] = {X_WB[j], X_WB[4 + j], X_WB[8 + j]};
             double u[3] = {a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]};
             const double n = norm3(u);
-            if (!(n > 1e-9)) continue;  // parallel edges give no axis (unit a, b: |a x b| is the sine)
+            if (!(n > kParallel)) continue;  // parallel edges give no axis (unit a, b: |a x b| is the sine)
             for (double &x : u) x /= n;
             consider(u);
         }
@@ -148,14 +148,22 @@ void path_bounds(const BoxPath &path, int n, double *lo, double *hi) {
 }
 
 double first_touch(const BoxPath &a, const BoxPath &b, double fit_tolerance, const Tolerances &tol, long &solves,
-                   double depth0, Hit *contact) {
+                   Outcome &outcome, double depth0, Hit *contact) {
+    outcome = Outcome::Separated;
     if (contact) *contact = Hit{};
-    if (!a.finite() || !b.finite()) return kNaN;
+    if (!a.finite() || !b.finite()) {
+        outcome = Outcome::NonFinite;
+        if (contact) contact->outcome = outcome;
+        return kNaN;
+    }
     if (std::isnan(depth0)) depth0 = path_depth(a, b, 0.0);
     // Touching at the start: the fitted motions, exact there, touch too (the first
     // piece's solve, asked for the contact, describes it).
     const bool at_start = depth0 >= 0.0;
-    if (at_start && !contact) return 0.0;
+    if (at_start && !contact) {
+        outcome = Outcome::Initial;
+        return 0.0;
+    }
     const int n = std::max(a.pieces(fit_tolerance), b.pieces(fit_tolerance));
     for (int k = 0; k < n; ++k) {  // pieces in order: the first that touches has the first touch
         const double lo = double(k) / n, hi = double(k + 1) / n;
@@ -164,8 +172,9 @@ double first_touch(const BoxPath &a, const BoxPath &b, double fit_tolerance, con
         // No proven fit (too fast even for 64 pieces, or a fit overflowed): early, never late.
         bool fitted = grow_a < kInf && grow_b < kInf;
         for (int i = 0; i < 48; ++i) fitted = fitted && std::isfinite(coeffs_a[i]) && std::isfinite(coeffs_b[i]);
-        if (!fitted) {
-            if (contact) contact->hit = true, contact->t = lo, contact->initial = at_start;
+        if (!fitted) {  // a cap reached (kMaxFitPieces): early, not proven a contact
+            outcome = at_start ? Outcome::Initial : Outcome::StepCap;
+            if (contact) contact->outcome = outcome, contact->t = lo, contact->s = at_start ? 0.0 : kNaN;
             return lo;
         }
         double lo_a[3], hi_a[3], lo_b[3], hi_b[3];
@@ -175,12 +184,15 @@ double first_touch(const BoxPath &a, const BoxPath &b, double fit_tolerance, con
             hi_b[i] = b.half_extents()[i] + grow_b;
             lo_b[i] = -hi_b[i];
         }
-        Hit h = Problem({lo_a, hi_a, coeffs_a}, {lo_b, hi_b, coeffs_b}, 0.0, 1.0, tol).solve(contact != nullptr);
+        Query query({lo_a, hi_a, coeffs_a}, {lo_b, hi_b, coeffs_b}, 0.0, 1.0, tol);
+        Hit h = query.solve(contact != nullptr);
         ++solves;
-        if (h.hit || at_start) {
+        if (h.contact() || at_start) {
+            // A degraded outcome (early, not proven) stays what it is; a touch at the
+            // start is one whatever the solve says.
+            if (at_start) h.outcome = Outcome::Initial, h.s = 0.0;
             h.t = at_start ? 0.0 : lo + h.t * (hi - lo);
-            h.hit = true;
-            h.initial = h.initial || at_start;
+            outcome = h.outcome;
             if (contact) *contact = h;
             return h.t;
         }

@@ -90,11 +90,15 @@ void path_bounds(const BoxPath &path, int n, double *lo, double *hi);
 // fraction, or NaN if they stay apart (or a path is not finite). A piece whose growth is not finite
 // (motion too fast to fit even in 64 pieces) is reported as touching at its
 // start (early, never late). depth0: path_depth at 0 if known (NaN: computed);
-// touching then is a touch at 0. `solves` counts the solver calls. With
-// `contact`, the solver's contact (point, normal, features on the grown boxes'
-// fitted motions; t in step fractions) is written there (hit = false when apart;
-// a touch at the start or on an unfitted piece has hit with no facet).
+// touching then is a touch at 0. `solves` counts the solver calls. `outcome` says
+// what happened (Separated, NonFinite, Initial for a touch at 0, StepCap for a piece
+// no fit up to kMaxFitPieces proves, or the solver's outcome on the touching piece:
+// a degraded one is early and not proven). With `contact`, the solver's contact
+// (point, normal, features on the grown boxes' fitted motions; t in step fractions)
+// is written there (outcome Separated when apart; a touch at the start or on an
+// unfitted piece may have no facet).
 double first_touch(const BoxPath &a, const BoxPath &b, double fit_tolerance, const Tolerances &tol, long &solves,
-                   double depth0 = std::numeric_limits<double>::quiet_NaN(), Hit *contact = nullptr);
+                   Outcome &outcome, double depth0 = std::numeric_limits<double>::quiet_NaN(),
+                   Hit *contact = nullptr);
 
 }  // namespace boxccd

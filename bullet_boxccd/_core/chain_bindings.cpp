@@ -248,16 +248,20 @@ Out<3> path_half_extents(const BoxPath &path) {
     return a;
 }
 
-nb::tuple paths_first_touch(const BoxPath &a, const BoxPath &b, double fit_tolerance, const Tolerances &tol) {
+// (first touch, solver calls), or with `state` (first touch, its Outcome as int, solver calls).
+nb::tuple paths_first_touch(const BoxPath &a, const BoxPath &b, double fit_tolerance, const Tolerances &tol,
+                            bool state) {
     if (!(fit_tolerance > 0.0))
         throw nb::value_error(("fit_tolerance must be > 0, got " + std::to_string(fit_tolerance)).c_str());
     long solves = 0;
     double t;
+    Outcome outcome;
     {
         nb::gil_scoped_release release;
-        t = first_touch(a, b, fit_tolerance, tol, solves);
+        t = first_touch(a, b, fit_tolerance, tol, solves, outcome);
     }
-    return nb::make_tuple(t, solves);
+    if (!state) return nb::make_tuple(t, solves);
+    return nb::make_tuple(t, static_cast<int>(outcome), solves);
 }
 
 double paths_depth(const BoxPath &a, const BoxPath &b, double tau) {
@@ -346,7 +350,7 @@ void bind_chain(nb::module_ &m) {
         },
         nb::arg("chain"), nb::arg("state"), nb::arg("q"), nb::arg("qdot"), nb::arg("dt"), nb::arg("tau"));
     m.def("paths_first_touch", &paths_first_touch, nb::arg("a"), nb::arg("b"), nb::arg("fit_tolerance"),
-          nb::arg("tolerances"));
+          nb::arg("tolerances"), nb::arg("state") = false);
     m.def("paths_depth", &paths_depth, nb::arg("a"), nb::arg("b"), nb::arg("tau"));
     m.def("paths_separation", &paths_separation, nb::arg("a"), nb::arg("b"), nb::arg("tau"));
     m.def("paths_first_depth", &paths_first_depth, nb::arg("a"), nb::arg("b"), nb::arg("from_tau"), nb::arg("target"));

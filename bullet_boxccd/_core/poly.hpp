@@ -1,6 +1,7 @@
 // Univariate polynomials of degree <= 6 in the normalised time s in [0, 1], and
-// the one root query the solver needs: the first s in (lo, hi] at which a
-// polynomial that is positive at lo becomes <= 0.
+// the two root queries the solver needs: the first s in (lo, hi] at which a
+// polynomial that is positive at lo becomes <= 0 (a facet reached), and the
+// first sign change (an octant switch).
 //
 // Why degree 6: a box's edge directions are columns of a quadratic 3x3 matrix
 // (degree 2), a face normal or an edge-edge axis is a cross product of two of
@@ -12,22 +13,30 @@
 // in the convex hull of its control points, so "all control points > 0" proves
 // "no root", and Descartes' rule of signs on the control points (one sign
 // variation => exactly one root) proves a single crossing that a bracketed
-// secant method (Illinois) then pins down to ~1e-15. Intervals with more variations
-// are halved (de Casteljau), left half first, so the first root is found first.
+// secant method (Illinois, then bisection) pins down to kRootWidth. Intervals
+// with more variations are halved (de Casteljau), left half first, so the first
+// root is found first. Degenerate cases, where they are handled:
+// * double roots (grazing): "touching" is p <= 0, and the solver shifts each
+//   facet by its tolerance, which turns a touch into two simple crossings;
+// * clustered roots (closer than doubles can separate): the halving stops at
+//   kMaxSubdivisionDepth and the query returns the cluster's start (early) and
+//   says so (`clustered`);
+// * a secant that stalls on one end: a nudge past that end, then bisection.
 #pragma once
 
 #include <array>
 #include <cmath>
 #include <limits>
 
+#include "constants.hpp"
+
 namespace boxccd {
 
 constexpr int kMaxDeg = 6;
-constexpr double kEps = std::numeric_limits<double>::epsilon();
 
 // An aggregate on purpose: `Poly p{}` is the zero polynomial, while a plain
 // `Poly p;` (or an array member) is storage that is assigned whole before it is
-// read. The solver's tables of ~100 polynomials then cost no zeroing per query.
+// read. The solver's tables of polynomials then cost no zeroing per query.
 struct Poly {
     std::array<double, kMaxDeg + 1> c;  // c[i] multiplies s^i
     int deg;                            // c[i] == 0 for i > deg
@@ -46,12 +55,6 @@ struct Poly {
     }
 };
 
-inline Poly operator-(const Poly &a, const Poly &b) {
-    Poly r{};
-    r.deg = a.deg > b.deg ? a.deg : b.deg;
-    for (int i = 0; i <= r.deg; ++i) r.c[i] = a.c[i] - b.c[i];
-    return r;
-}
 inline Poly operator*(double k, const Poly &a) {
     Poly r{};
     r.deg = a.deg;
@@ -66,52 +69,9 @@ inline void trim(Poly &p) {
 
 // r += k * a (k is +-1 or a half extent); avoids temporaries in the hot loops.
 inline void axpy(Poly &r, double k, const Poly &a) {
+    for (int i = r.deg + 1; i <= a.deg; ++i) r.c[i] = 0.0;
     if (a.deg > r.deg) r.deg = a.deg;
     for (int i = 0; i <= a.deg; ++i) r.c[i] += k * a.c[i];
-}
-
-// r += k * a * b with degrees known at compile time (the loops unroll): the
-// hot part of building a problem. a.deg <= DA and b.deg <= DB are the caller's promise.
-template <int DA, int DB>
-inline void mul_acc_fixed(Poly &r, double k, const Poly &a, const Poly &b) {
-    static_assert(DA + DB <= kMaxDeg, "degree overflow");
-    double acc[DA + DB + 1];  // a local accumulator: r may alias a or b
-    for (int i = 0; i <= DA + DB; ++i) acc[i] = r.c[i];
-    for (int i = 0; i <= DA; ++i) {
-        const double ka = k * a.c[i];
-        for (int j = 0; j <= DB; ++j) acc[i + j] += ka * b.c[j];
-    }
-    for (int i = 0; i <= DA + DB; ++i) r.c[i] = acc[i];
-    if (DA + DB > r.deg) r.deg = DA + DB;
-}
-
-// p(s) for p of degree <= 2 (edge directions and centres), without the loop.
-inline double eval2(const Poly &p, double s) { return p.c[0] + s * (p.c[1] + s * p.c[2]); }
-
-// A polynomial vector (a box edge direction, a centre, a normal).
-struct PVec {
-    Poly x[3];
-    std::array<double, 3> operator()(double s) const { return {x[0](s), x[1](s), x[2](s)}; }
-    std::array<double, 3> at2(double s) const { return {eval2(x[0], s), eval2(x[1], s), eval2(x[2], s)}; }
-    double magnitude() const { return x[0].magnitude() + x[1].magnitude() + x[2].magnitude(); }
-};
-// Cross and dot products of vectors whose entries have degree <= DA, DB
-// (edge directions and centres are quadratic, normals quartic).
-template <int DA = 2, int DB = 2>
-inline PVec cross(const PVec &a, const PVec &b) {
-    PVec r{};
-    for (int i = 0; i < 3; ++i) {
-        const int j = (i + 1) % 3, k = (i + 2) % 3;
-        mul_acc_fixed<DA, DB>(r.x[i], 1.0, a.x[j], b.x[k]);
-        mul_acc_fixed<DA, DB>(r.x[i], -1.0, a.x[k], b.x[j]);
-    }
-    return r;
-}
-template <int DA, int DB>
-inline Poly dot(const PVec &a, const PVec &b) {
-    Poly r{};
-    for (int i = 0; i < 3; ++i) mul_acc_fixed<DA, DB>(r, 1.0, a.x[i], b.x[i]);
-    return r;
 }
 
 // Bernstein control points of p restricted to [lo, hi] (mapped onto u in [0, 1]).
@@ -123,7 +83,7 @@ struct Bernstein {
 // kPowerToBernstein[n][k][i] = C(k, i) / C(n, i): b_k = sum_{i<=k} ratio * q_i.
 struct PowerToBernstein {
     double r[kMaxDeg + 1][kMaxDeg + 1][kMaxDeg + 1] = {};
-    PowerToBernstein() {
+    constexpr PowerToBernstein() {
         double C[kMaxDeg + 1][kMaxDeg + 1] = {};
         for (int n = 0; n <= kMaxDeg; ++n) {
             C[n][0] = 1.0;
@@ -134,7 +94,7 @@ struct PowerToBernstein {
                 for (int i = 0; i <= k; ++i) r[n][k][i] = C[k][i] / C[n][i];
     }
 };
-inline const PowerToBernstein kPowerToBernstein;
+inline constexpr PowerToBernstein kPowerToBernstein;
 
 inline Bernstein to_bernstein(const Poly &p, double lo, double hi) {
     // Taylor shift to lo, then scale by w = hi - lo: q(u) = p(lo + w u).
@@ -146,7 +106,10 @@ inline Bernstein to_bernstein(const Poly &p, double lo, double hi) {
     const double w = hi - lo;
     if (w != 1.0) {
         double wk = w;
-        for (int i = 1; i <= n; ++i) { q[i] *= wk; wk *= w; }
+        for (int i = 1; i <= n; ++i) {
+            q[i] *= wk;
+            wk *= w;
+        }
     }
     Bernstein r;
     r.deg = n;
@@ -176,42 +139,44 @@ inline void split_half(const Bernstein &in, Bernstein &left, Bernstein &right) {
 inline int sign_variations(const Bernstein &bz) {
     int v = 0, last = 0;
     for (int i = 0; i <= bz.deg; ++i) {
-        const int s = (bz.b[i] > 0.0) - (bz.b[i] < 0.0);
-        if (s != 0) {
-            if (last != 0 && s != last) ++v;
-            last = s;
+        const int sg = (bz.b[i] > 0.0) - (bz.b[i] < 0.0);
+        if (sg != 0) {
+            if (last != 0 && sg != last) ++v;
+            last = sg;
         }
     }
     return v;
 }
 
-// Width below which a root bracket in s counts as converged: 2^-50, a few
-// doubles near s = 1, so contact times are resolved to ~1e-15 of the range.
-constexpr double kRootWidth = 8.8817841970012523e-16;
-
 // Given p(lo) > 0 >= p(hi) and a single crossing in between: a point x with
 // p(x) <= 0 as evaluated, at most kRootWidth after the last point found with
-// p > 0. Illinois (regula falsi that halves the value kept at a stale end)
-// converges superlinearly and cannot leave the bracket; a bisection step
-// replaces any secant step that would.
-inline double refine_crossing(const Poly &p, double lo, double hi) {
+// p > 0 (or adjacent to it, where doubles are coarser). Illinois (regula falsi
+// that halves the value kept at a stale end) converges superlinearly and cannot
+// leave the bracket; after `max_secant` steps bisection finishes, so the answer
+// is converged whatever the polynomial does.
+inline double refine_crossing(const Poly &p, double lo, double hi, int max_secant = kMaxSecantSteps) {
     double flo = p(lo), fhi = p(hi);
     if (!(flo > 0.0)) return lo;
     int side = 0;
     double nudge = 0.25 * kRootWidth;
-    for (int it = 0; it < 100 && hi - lo > kRootWidth; ++it) {
-        double x = (lo * fhi - hi * flo) / (fhi - flo);
-        // Once an end is within rounding of the root, the secant stalls on it:
-        // step just past that end instead (doubling the step while it stalls), so
-        // that the bracket closes at once rather than by ~50 bisections.
-        if (!(x > lo + nudge)) {
-            x = lo + nudge;
-            nudge *= 2.0;
-        } else if (!(x < hi - nudge)) {
-            x = hi - nudge;
-            nudge *= 2.0;
+    for (int it = 0; hi - lo > kRootWidth; ++it) {
+        double x;
+        if (it < max_secant) {
+            x = (lo * fhi - hi * flo) / (fhi - flo);
+            // Once an end is within rounding of the root, the secant stalls on it:
+            // step just past that end instead (doubling the step while it stalls),
+            // so that the bracket closes at once rather than by ~50 bisections.
+            if (!(x > lo + nudge)) {
+                x = lo + nudge;
+                nudge *= 2.0;
+            } else if (!(x < hi - nudge)) {
+                x = hi - nudge;
+                nudge *= 2.0;
+            }
+            if (!(x > lo && x < hi)) x = 0.5 * (lo + hi);
+        } else {
+            x = 0.5 * (lo + hi);
         }
-        if (!(x > lo && x < hi)) x = 0.5 * (lo + hi);
         if (x <= lo || x >= hi) break;  // adjacent doubles
         const double fx = p(x);
         if (fx > 0.0) {
@@ -236,50 +201,80 @@ inline bool clearly_nonzero(const Poly &p) {
     return std::fabs(p.c[0]) > rest;
 }
 
+constexpr double kNoRoot = std::numeric_limits<double>::quiet_NaN();
+
 // The first s in (lo, hi] at which p changes sign (an octant switch); NaN if
-// none. Roots that only touch zero do not change the topology and are skipped.
-inline double first_sign_change(const Poly &p, double lo, double hi, const Bernstein &bz, int depth) {
+// none. Roots that only touch zero do not change the topology and are skipped;
+// so is an even cluster of roots that doubles cannot separate (the sign is the
+// same on both sides, and the section between them is narrower than a double).
+// An odd cluster is a switch at its middle; `clustered` is set either way.
+// The sign of the first (from_end: last) nonzero control point; 0 if all are zero.
+inline int end_sign(const Bernstein &bz, bool from_end) {
+    for (int i = 0; i <= bz.deg; ++i) {
+        const double b = bz.b[from_end ? bz.deg - i : i];
+        if (b != 0.0) return b > 0.0 ? 1 : -1;
+    }
+    return 0;
+}
+
+inline double first_sign_change(const Poly &p, double lo, double hi, const Bernstein &bz, int depth,
+                                bool &clustered) {
     const int v = sign_variations(bz);
-    if (v == 0) return std::numeric_limits<double>::quiet_NaN();
+    if (v == 0) return kNoRoot;
     const double b0 = bz.b[0], bn = bz.b[bz.deg];
     // One variation between nonzero ends: exactly one crossing, ends of opposite sign.
     if (v == 1 && b0 != 0.0 && bn != 0.0) return refine_crossing(b0 > 0.0 ? p : -1.0 * p, lo, hi);
     const double mid = 0.5 * (lo + hi);
-    if (depth >= 60 || mid <= lo || mid >= hi)  // clustered roots in a few doubles
-        return v % 2 ? mid : std::numeric_limits<double>::quiet_NaN();
+    if (depth >= kMaxSubdivisionDepth || mid <= lo || mid >= hi) {
+        clustered = true;
+        return v % 2 ? mid : kNoRoot;
+    }
     Bernstein l, r;
     split_half(bz, l, r);
-    const double x = first_sign_change(p, lo, mid, l, depth + 1);
-    return std::isnan(x) ? first_sign_change(p, mid, hi, r, depth + 1) : x;
+    const double x = first_sign_change(p, lo, mid, l, depth + 1, clustered);
+    if (!std::isnan(x)) return x;
+    // p(mid) == 0 exactly (a root at the split point, e.g. a dyadic one): neither
+    // half sees it as a variation; it is a sign change if the sides differ.
+    if (l.b[l.deg] == 0.0) {
+        const int before = end_sign(l, true), after = end_sign(r, false);
+        if (before != 0 && after != 0 && before != after) return mid;
+    }
+    return first_sign_change(p, mid, hi, r, depth + 1, clustered);
 }
 
-inline double first_sign_change(const Poly &p, double lo, double hi) {
-    if (clearly_nonzero(p)) return std::numeric_limits<double>::quiet_NaN();
-    return first_sign_change(p, lo, hi, to_bernstein(p, lo, hi), 0);
+inline double first_sign_change(const Poly &p, double lo, double hi, bool &clustered) {
+    if (clearly_nonzero(p)) return kNoRoot;
+    return first_sign_change(p, lo, hi, to_bernstein(p, lo, hi), 0, clustered);
 }
 
 // The first s in (lo, hi] with p(s) <= 0, given p(lo) > 0; NaN if p > 0 on all
-// of [lo, hi]. Conservative near clustered roots: it may return a point just
-// before the true crossing, never one after it.
-inline double first_nonpositive(const Poly &p, double lo, double hi, const Bernstein &bz, int depth) {
-    bool all_positive = true;
-    for (int i = 0; i <= bz.deg; ++i) all_positive = all_positive && bz.b[i] > 0.0;
-    if (all_positive) return std::numeric_limits<double>::quiet_NaN();
+// of [lo, hi]. Never after the true crossing: where roots cluster closer than
+// doubles can separate, it returns the cluster's start and sets `clustered`.
+inline double first_nonpositive(const Poly &p, double lo, double hi, const Bernstein &bz, int depth,
+                                bool &clustered) {
     if (bz.b[0] <= 0.0) return lo;
+    // No negative control point (and b0 > 0): p > 0 on [lo, hi), so the first
+    // nonpositive point is hi if p(hi) = 0 (a root at a split point) and none else.
+    bool nonnegative = true;
+    for (int i = 1; i <= bz.deg; ++i) nonnegative = nonnegative && bz.b[i] >= 0.0;
+    if (nonnegative) return bz.b[bz.deg] == 0.0 ? hi : kNoRoot;
     const int v = sign_variations(bz);
     if (v == 1 && bz.b[bz.deg] <= 0.0) return refine_crossing(p, lo, hi);
     const double mid = 0.5 * (lo + hi);
-    if (depth >= 60 || mid <= lo || mid >= hi) return lo;  // clustered roots: stay early
+    if (depth >= kMaxSubdivisionDepth || mid <= lo || mid >= hi) {
+        clustered = true;
+        return lo;
+    }
     Bernstein l, r;
     split_half(bz, l, r);
-    const double x = first_nonpositive(p, lo, mid, l, depth + 1);
+    const double x = first_nonpositive(p, lo, mid, l, depth + 1, clustered);
     if (!std::isnan(x)) return x;
-    return first_nonpositive(p, mid, hi, r, depth + 1);
+    return first_nonpositive(p, mid, hi, r, depth + 1, clustered);
 }
 
-inline double first_nonpositive(const Poly &p, double lo, double hi) {
-    if (p.c[0] > 0.0 && clearly_nonzero(p)) return std::numeric_limits<double>::quiet_NaN();
-    return first_nonpositive(p, lo, hi, to_bernstein(p, lo, hi), 0);
+inline double first_nonpositive(const Poly &p, double lo, double hi, bool &clustered) {
+    if (p.c[0] > 0.0 && clearly_nonzero(p)) return kNoRoot;
+    return first_nonpositive(p, lo, hi, to_bernstein(p, lo, hi), 0, clustered);
 }
 
 }  // namespace boxccd

@@ -105,7 +105,7 @@ double path_separation(const double *box_a, const double *box_b, double tau, dou
             const double a[3] = {A.R[0][i], A.R[1][i], A.R[2][i]}, b[3] = {B.R[0][j], B.R[1][j], B.R[2][j]};
             double u[3] = {a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]};
             const double n = std::sqrt(u[0] * u[0] + u[1] * u[1] + u[2] * u[2]);
-            if (!(n > 1e-9)) continue;  // parallel edges give no axis
+            if (!(n > kParallel)) continue;  // parallel edges give no axis (unit a, b: |a x b| = sin)
             for (double &x : u) x /= n;
             if (!consider(u)) return depth;
         }
@@ -130,7 +130,7 @@ void swept_bounds(const double *box, double *lo, double *hi) {
     const double *h = box + pr::kHalfExtents;
     const double r = reach_radius(box);
     const double q = 0.25 * box[pr::kAngle];
-    const double sag = r * q * q / 8.0 + 1e-9;
+    const double sag = r * q * q / 8.0;
     for (int i = 0; i < 3; ++i) {
         lo[i] = std::numeric_limits<double>::infinity();
         hi[i] = -lo[i];
@@ -141,8 +141,10 @@ void swept_bounds(const double *box, double *lo, double *hi) {
         const Pose P = box_pose(box, 0.25 * k);
         for (int i = 0; i < 3; ++i) {
             const double e = std::fabs(P.R[i][0]) * h[0] + std::fabs(P.R[i][1]) * h[1] + std::fabs(P.R[i][2]) * h[2];
-            lo[i] = std::fmin(lo[i], P.c[i] - e - sag);
-            hi[i] = std::fmax(hi[i], P.c[i] + e + sag);
+            // The pose's rounding: a few eps of the coordinate's magnitude.
+            const double pad = sag + kBoundsRounding * kEps * (std::fabs(P.c[i]) + r);
+            lo[i] = std::fmin(lo[i], P.c[i] - e - pad);
+            hi[i] = std::fmax(hi[i], P.c[i] + e + pad);
         }
     }
 }
@@ -161,18 +163,18 @@ double first_depth(const double *box_a, const double *box_b, double tau_from, do
     if (std::isnan(depth_from)) depth_from = path_depth(box_a, box_b, tau_from);
     const double need = target - std::fmax(depth_from, 0.0);
     const double speed = (travel(box_a) + travel(box_b)) * span;
-    // The first sample taken: the largest k <= 48 with speed 2^-k >= need (k = 0 is
+    // The first sample taken: the largest k <= kDepthLookAhead with speed 2^-k >= need (k = 0 is
     // always taken; with speed not a number, every k is).
-    int k0 = 48;
+    int k0 = kDepthLookAhead;
     if (need > 0.0 && speed >= 0.0) {
         const double x = speed / need;
-        int e = 49;
+        int e = kDepthLookAhead + 1;
         if (std::isfinite(x)) std::frexp(x, &e);  // x = m 2^e, m in [0.5, 1): floor(log2 x) = e - 1
-        k0 = std::clamp(e - 1, 0, 48);
-        while (k0 < 48 && !(std::ldexp(speed, -(k0 + 1)) < need)) ++k0;  // the division's rounding
+        k0 = std::clamp(e - 1, 0, kDepthLookAhead);
+        while (k0 < kDepthLookAhead && !(std::ldexp(speed, -(k0 + 1)) < need)) ++k0;  // the division's rounding
         while (k0 > 0 && std::ldexp(speed, -k0) < need) --k0;
     }
-    double lo = k0 < 48 ? tau_from + std::ldexp(span, -(k0 + 1)) : tau_from, hi = kNaN;
+    double lo = k0 < kDepthLookAhead ? tau_from + std::ldexp(span, -(k0 + 1)) : tau_from, hi = kNaN;
     for (double step = std::ldexp(span, -k0); ; step *= 2.0) {  // 2^-k of the rest of the step, k = k0 .. 0
         const double t = tau_from + step;
         if (depth_reaches(box_a, box_b, t, target)) {
@@ -183,7 +185,7 @@ double first_depth(const double *box_a, const double *box_b, double tau_from, do
         if (!(step < span)) break;
     }
     if (std::isnan(hi)) return hi;
-    for (int it = 0; it < 200 && hi - lo > 1e-15; ++it) {
+    for (int it = 0; it < kMaxDepthHalvings && hi - lo > kDepthWidth; ++it) {
         const double mid = 0.5 * (lo + hi);
         if (mid <= lo || mid >= hi) break;
         if (depth_reaches(box_a, box_b, mid, target)) hi = mid; else lo = mid;
@@ -315,7 +317,7 @@ int fit_pieces(const double *box, double fit_tolerance) {
     const double err1 = kFitErrorPerCubedAngle * phi * phi * phi * reach_radius(box);
     const double allowed = fit_tolerance * std::min({h[0], h[1], h[2]});
     int pieces = 1;
-    while (pieces < 64 && err1 > allowed * pieces * pieces * pieces) pieces *= 2;
+    while (pieces < kMaxFitPieces && err1 > allowed * pieces * pieces * pieces) pieces *= 2;
     return pieces;
 }
 
@@ -347,19 +349,30 @@ bool finite_row(const double *box) {
 }  // namespace
 
 double first_touch(const double *box_a, const double *box_b, double fit_tolerance, const Tolerances &tol,
-                   long &solves, double depth0) {
-    if (!finite_row(box_a) || !finite_row(box_b)) return kNaN;
+                   long &solves, Outcome &outcome, double depth0) {
+    outcome = Outcome::Separated;
+    if (!finite_row(box_a) || !finite_row(box_b)) {
+        outcome = Outcome::NonFinite;
+        return kNaN;
+    }
     // Touching at the start (most often a resting contact): the fitted motions, exact
     // at the start and inflated, touch there too.
     if (std::isnan(depth0)) depth0 = path_depth(box_a, box_b, 0.0);
-    if (depth0 >= 0.0) return 0.0;
+    if (depth0 >= 0.0) {
+        outcome = Outcome::Initial;
+        return 0.0;
+    }
     const int n = std::max(fit_pieces(box_a, fit_tolerance), fit_pieces(box_b, fit_tolerance));
     for (int k = 0; k < n; ++k) {  // pieces in order: the first that touches has the first touch
         const double lo = double(k) / n, hi = double(k + 1) / n;
         const FittedBox a(box_a, lo, hi, 0.0), b(box_b, lo, hi, 0.0);
-        const Hit h = Problem(a.input(), b.input(), 0.0, 1.0, tol).solve(false);
+        Query query(a.input(), b.input(), 0.0, 1.0, tol);
+        const Hit h = query.solve(false);
         ++solves;
-        if (h.hit) return lo + h.t * (hi - lo);
+        if (h.contact()) {
+            outcome = h.outcome;
+            return lo + h.t * (hi - lo);
+        }
     }
     return kNaN;
 }
@@ -373,11 +386,16 @@ bool presses_in(const double *box_a, const double *box_b, double penetration, do
 }
 
 Hit path_contact(const double *box_a, const double *box_b, double lo, double hi, const Tolerances &tol) {
-    if (!finite_row(box_a) || !finite_row(box_b)) return Hit{};
-    if (hi - lo < 1e-12) lo = std::max(0.0, hi - 1e-12);
-    const FittedBox a(box_a, lo, hi, 1e-12), b(box_b, lo, hi, 1e-12);
-    Hit h = Problem(a.input(), b.input(), 0.0, 1.0, tol).solve(true);
-    h.t = lo + h.t * (hi - lo);
+    if (!finite_row(box_a) || !finite_row(box_b)) {
+        Hit h;
+        h.outcome = Outcome::NonFinite;
+        return h;
+    }
+    if (hi - lo < kMinWindow) lo = std::max(0.0, hi - kMinWindow);
+    const FittedBox a(box_a, lo, hi, kMinWindow), b(box_b, lo, hi, kMinWindow);
+    Query query(a.input(), b.input(), 0.0, 1.0, tol);
+    Hit h = query.solve(true);
+    if (h.contact()) h.t = lo + h.t * (hi - lo);
     return h;
 }
 

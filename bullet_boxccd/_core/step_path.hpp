@@ -108,11 +108,13 @@ int fit_pieces(const double *box, double fit_tolerance);
 
 // The first touch of two boxes on their fitted motions, each piece's box
 // inflated by the fit's error bound so that the answer is never late: the step
-// fraction, NaN if they stay apart (or a row is not finite). `solves` counts
-// the solver calls (one per piece tried).
+// fraction, NaN if they stay apart or a row is not finite; `outcome` says which
+// (Separated, NonFinite, Initial for a pair touching at the start, or the solver's
+// outcome on the touching piece: a degraded one is early and not proven). `solves`
+// counts the solver calls (one per piece tried).
 // depth0: path_depth at 0, if known (NaN: computed); a pair touching then touches at 0.
 double first_touch(const double *box_a, const double *box_b, double fit_tolerance, const Tolerances &tol,
-                   long &solves, double depth0 = std::numeric_limits<double>::quiet_NaN());
+                   long &solves, Outcome &outcome, double depth0 = std::numeric_limits<double>::quiet_NaN());
 
 // Whether two boxes that touch at the start of the step (path rows) press in during
 // it: their overlap grows past what it was at the start by penetration, and by
@@ -123,6 +125,7 @@ bool presses_in(const double *box_a, const double *box_b, double penetration, do
 
 // The first touch of two boxes known to touch within [lo, hi], with its
 // geometry (one fit over the window, inflated likewise); t is a step fraction.
+// Its outcome says what happened (NonFinite for a row that is not finite).
 Hit path_contact(const double *box_a, const double *box_b, double lo, double hi, const Tolerances &tol);
 
 // A rigid body at a collision: centre of mass (world), inverse mass, inverse and

@@ -33,7 +33,7 @@ import numpy as np
 import pybullet
 
 from .. import _core
-from ..solver import Feature
+from ..solver import Outcome
 from ._hooks import raw
 from .chain import read_chain
 from .events import CCDEvent
@@ -234,6 +234,7 @@ class Articulated:
         touch, solves, c = _core.paths_contact(a, b, fit_tolerance, tolerances._core)
         stats.solver_rows += solves
         stats.candidate_pairs += 1
+        stats.outcomes[Outcome.SEPARATED if c is None else c.outcome] += 1
         if math.isnan(touch):
             return None
         d0 = float(_core.paths_depth(a, b, 0.0))
@@ -245,12 +246,12 @@ class Articulated:
         creep = CREEP * thin
         target = max(d0, 0.0) + max(penetration, creep) if d0 > -creep else penetration
         act = float(_core.paths_first_depth(a, b, touch, target))
-        if c is not None:
+        if c.feature is not None:
             contact = (c.point, c.normal, c.feature)
-        else:
+        else:  # no BMS plane found (a touch at the start, or on a piece too fast to fit): no feature to name
             _, n = _core.paths_separation(a, b, touch)
             Xa, Xb = a.pose(touch), b.pose(touch)
-            contact = (0.5 * (Xa[:3, 3] + Xb[:3, 3]), n, Feature("", "", ""))
+            contact = (0.5 * (Xa[:3, 3] + Xb[:3, 3]), n, None)
         if math.isnan(act) or not _goes_wrong(a, b, act):
             act = None
         return touch, act, contact, initial, d0 > -creep

@@ -3,10 +3,11 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Optional
 
 import numpy as np
 
-from ..solver import Feature
+from ..solver import Feature, Outcome
 
 __all__ = ["BoxCCDWarning", "CCDEvent", "CCDStats"]
 
@@ -23,7 +24,8 @@ class CCDEvent:
     ``tau`` is the contact's fraction of the step (0 = start, 1 = end) and ``time``
     the same in seconds after the step started; ``point`` and ``normal`` (unit,
     from box A towards box B) are world coordinates at the first touch;
-    ``feature`` names the BMS plane; ``rewound`` says whether a body of the pair was
+    ``feature`` names the BMS plane (None where the search found none: a link box
+    touching at the start of the step, or on a piece too fast to fit); ``rewound`` says whether a body of the pair was
     put back at the contact (or, pushed by a kinematic body, ahead of it); False for a
     graze shallower than the rewind depth, or when neither body can be moved;
     ``initial`` marks a pair that already touched when the step began and pressed
@@ -38,7 +40,7 @@ class CCDEvent:
     time: float
     point: np.ndarray
     normal: np.ndarray
-    feature: Feature
+    feature: Optional[Feature]
     rewound: bool
     initial: bool
 
@@ -58,8 +60,23 @@ class CCDStats:
     held: int = 0  # contacts pybullet's solve left pressing in, resolved as collisions by the plugin
     bounded: int = 0  # partings of handled impacts slowed to what restitution allows
     rediscoveries: int = 0  # world changes read
+    # What the exact searches answered, by Outcome value (index with bullet_boxccd.Outcome):
+    # every candidate pair's first touch and every contact refit. A degraded answer
+    # (STEP_CAP, CLUSTERED_ROOTS: early, not proven a contact) is acted on like a contact,
+    # which is never late, and counted here under its own name, never as a HIT;
+    # NON_FINITE counts pairs with a row pybullet left not finite (left to pybullet).
+    outcomes: np.ndarray = field(default_factory=lambda: np.zeros(len(Outcome), dtype=np.int64))
     # Wall time by phase: pybullet's stepSimulation, reading state, broad phase, solving,
     # rewinding. A step in a world where nothing changed since the last is not timed
     # until something in it is fast (its stepSimulation then counts for nothing here).
     seconds: dict = field(default_factory=lambda: dict.fromkeys(
         ("step", "state", "broad_phase", "solve", "rewind"), 0.0))
+
+    @property
+    def degraded(self) -> int:
+        """Answers that hit a cap or a root cluster (``outcomes`` of STEP_CAP and CLUSTERED_ROOTS)."""
+        return int(self.outcomes[Outcome.STEP_CAP] + self.outcomes[Outcome.CLUSTERED_ROOTS])
+
+    def count(self, states) -> None:
+        """Add the outcomes ``states`` (int8 values of Outcome) to ``outcomes``."""
+        self.outcomes += np.bincount(np.asarray(states, dtype=np.int64), minlength=len(self.outcomes))

@@ -35,6 +35,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .. import _core
+from ..solver import Outcome
 from ._hooks import raw
 from .events import CCDEvent
 from .layout import ANGULAR_VELOCITY, PATH_ROW, POSE, VELOCITY
@@ -283,9 +284,10 @@ class Impacts:
         if lo >= 1.0:
             return None
         w = _core.window_rows(paths.rows[[i, j]], lo, 1.0)
-        tau, solves = _core.first_touches(w, np.array([[0, 1]], dtype=np.int64), self.fit_tolerance,
-                                          self.tolerances._core, self.penetration, CREEP)
+        tau, states, solves = _core.first_touches(w, np.array([[0, 1]], dtype=np.int64), self.fit_tolerance,
+                                                  self.tolerances._core, self.penetration, CREEP, states=True)
         self.stats.solver_rows += solves
+        self.stats.count(states)
         return None if np.isnan(tau[0]) else lo + float(tau[0]) * (1.0 - lo)
 
     def _queue(self, heap, paths, q, i, j, lo, touch):
@@ -551,8 +553,11 @@ class Impacts:
         """The first touch of a pair (path rows) in [lo, hi] (step fractions): one solve on
         a quadratic refit of the exact path over that window, the boxes inflated by the
         refit's error bound so that a touch cannot be missed; None if they stay apart
-        (the first touch found on the step's fit was within that fit's allowance only)."""
-        return _core.path_contact(pair, lo, hi, self.tolerances._core)
+        (the first touch found on the step's fit was within that fit's allowance only). Its
+        outcome is counted in the stats."""
+        c = _core.path_contact(pair, lo, hi, self.tolerances._core)
+        self.stats.outcomes[Outcome.SEPARATED if c is None else c.outcome] += 1
+        return c
 
 
 # ---------------------------------------------------------------- geometry

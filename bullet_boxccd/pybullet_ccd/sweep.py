@@ -86,7 +86,7 @@ def sweep(cid, tables, state, dt, fit_tolerance, tolerances, penetration, stats,
     t2 = time.perf_counter()
     stats.seconds["broad_phase"] += t2 - t1
     n_pairs, solves, found = sweeper.touches(dt, boxes, len(fast), all_others, fit_tolerance, tolerances._core,
-                                             penetration, CREEP)
+                                             penetration, CREEP, stats.outcomes)
     stats.candidate_pairs += n_pairs
     stats.solver_rows += solves
     stats.seconds["solve"] += time.perf_counter() - t2
@@ -156,8 +156,10 @@ def moves_into(cid, tables, moves, frozen_of, widen, fit_tolerance, tolerances, 
     pairs = pairs[pairs[:, 1] >= len(moving)] if len(pairs) else pairs
     if not len(pairs):
         return None
-    tau, solves = _core.first_touches(rows, pairs, fit_tolerance, tolerances._core, penetration, CREEP)
+    tau, states, solves = _core.first_touches(rows, pairs, fit_tolerance, tolerances._core, penetration, CREEP,
+                                              states=True)
     stats.solver_rows += solves
+    stats.count(states)
     hits = _hits(pairs, tau)
     return Sweep(rows, boxes, pairs, hits) if hits else None
 
