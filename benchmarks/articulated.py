@@ -31,10 +31,9 @@ from __future__ import annotations
 import argparse
 import time
 
-import pybullet_data
-
 import numpy as np
 import pybullet as p
+import pybullet_data
 
 from bullet_boxccd import BoxCCD
 
