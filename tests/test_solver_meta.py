@@ -22,10 +22,15 @@ SOLVER_TESTS = ["test_solver.py", "test_solver_oracle.py", "test_solver_poly.py"
 @pytest.mark.parametrize("mode", ["never", "t0"])
 def test_every_solver_test_fails_against_a_broken_solver(mode, tmp_path):
     report = tmp_path / "report.jsonl"
-    cmd = [sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", "-m", "not stress",
-           f"--broken-solver={mode}", f"--broken-solver-report={report}",
+    root = os.path.dirname(HERE)
+    # Run from an empty directory: `python -m pytest` puts its working directory first on
+    # sys.path, and from the checkout that would import the source tree (no compiled
+    # core) instead of the installed package.
+    cmd = [sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", "-c", os.path.join(root, "pyproject.toml"),
+           "--rootdir", root, "-m", "not stress", f"--broken-solver={mode}", f"--broken-solver-report={report}",
            *[os.path.join(HERE, f) for f in SOLVER_TESTS]]
-    subprocess.run(cmd, cwd=os.path.dirname(HERE), capture_output=True, text=True, timeout=1800)
+    run = subprocess.run(cmd, cwd=tmp_path, capture_output=True, text=True, timeout=1800)
+    assert report.exists(), f"the broken-solver run wrote no report:\n{run.stdout[-3000:]}\n{run.stderr[-3000:]}"
     rows = [json.loads(line) for line in report.read_text().splitlines()]
     queried = [r for r in rows if r["queried"]]
     passed = [r["test"] for r in queried if r["outcome"] != "failed"]
