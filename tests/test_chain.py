@@ -277,6 +277,23 @@ def fit_errors(motion, link, lo, hi, coeffs, points, samples=101):
     return worst_point, worst_rotation
 
 
+def random_fit(rng, n_links, rate, pieces_from, r_max, n_points):
+    """A random chain's motion at up to ``rate``, one of its links, a random piece of the
+    step (1/pieces, pieces drawn from ``pieces_from``), n_points points at a random
+    r <= r_max from the link's origin, and ``motion.fit`` there: (motion, link, lo, hi,
+    points, (coeffs, bound, rotation, sweep))."""
+    chain, *tables = random_chain(rng, n_links)
+    motion = random_motion(rng, chain, *tables, rate=rate)
+    link = int(rng.integers(0, chain.n_links))
+    pieces = int(rng.choice(pieces_from))
+    k = int(rng.integers(0, pieces))
+    lo, hi = k / pieces, (k + 1) / pieces
+    r = rng.uniform(0.0, r_max)
+    fit = motion.fit(link, lo, hi, r)
+    directions = rng.normal(size=(n_points, 3))
+    return motion, link, lo, hi, directions / np.linalg.norm(directions, axis=1)[:, None] * r, fit
+
+
 def test_fit_bound_holds_for_fast_chains():
     """Chains of 5-10 links, joint and base rates to 200 rad/s at 1/240 s (up to 0.83 rad
     a step each), whole steps and pieces: every point within r of the link's origin stays
@@ -286,16 +303,8 @@ def test_fit_bound_holds_for_fast_chains():
     rng = np.random.default_rng(2024)
     ratios = []
     for _ in range(300):
-        chain, *tables = random_chain(rng, int(rng.integers(5, 11)))
-        motion = random_motion(rng, chain, *tables, rate=200.0)
-        link = int(rng.integers(0, chain.n_links))
-        pieces = int(rng.choice([1, 2, 4, 16]))
-        k = int(rng.integers(0, pieces))
-        lo, hi = k / pieces, (k + 1) / pieces
-        r = rng.uniform(0.0, 0.5)
-        coeffs, bound, rotation, sweep = motion.fit(link, lo, hi, r)
-        directions = rng.normal(size=(40, 3))
-        points = directions / np.linalg.norm(directions, axis=1)[:, None] * r
+        motion, link, lo, hi, points, (coeffs, bound, rotation, sweep) = random_fit(
+            rng, int(rng.integers(5, 11)), 200.0, [1, 2, 4, 16], 0.5, 40)
         worst_point, worst_rotation = fit_errors(motion, link, lo, hi, coeffs, points)
         assert worst_point <= bound, (worst_point, bound)
         assert worst_rotation <= rotation * (1 + 1e-9) + 1e-15, (worst_rotation, rotation)
@@ -313,16 +322,8 @@ def test_fit_bound_holds_stress():
     1/1 to 1/64 of the step, points to 2 m from the link's origin."""
     rng = np.random.default_rng(99)
     for _ in range(20000):
-        chain, *tables = random_chain(rng, int(rng.integers(1, 13)))
-        motion = random_motion(rng, chain, *tables, rate=float(rng.choice([10.0, 200.0, 1000.0])))
-        link = int(rng.integers(0, chain.n_links))
-        pieces = int(rng.choice([1, 2, 8, 64]))
-        k = int(rng.integers(0, pieces))
-        lo, hi = k / pieces, (k + 1) / pieces
-        r = rng.uniform(0.0, 2.0)
-        coeffs, bound, rotation, sweep = motion.fit(link, lo, hi, r)
-        directions = rng.normal(size=(20, 3))
-        points = directions / np.linalg.norm(directions, axis=1)[:, None] * r
+        motion, link, lo, hi, points, (coeffs, bound, rotation, _) = random_fit(
+            rng, int(rng.integers(1, 13)), float(rng.choice([10.0, 200.0, 1000.0])), [1, 2, 8, 64], 2.0, 20)
         worst_point, worst_rotation = fit_errors(motion, link, lo, hi, coeffs, points, samples=65)
         assert worst_point <= bound, (worst_point, bound)
         assert worst_rotation <= rotation * (1 + 1e-9) + 1e-15, (worst_rotation, rotation)

@@ -125,8 +125,7 @@ Out<7> base_pose(const ChainMotion &motion, double tau) {
 
 // (n, 13) frame-state rows of the given links (-1: the base): the pose after the
 // step, then the velocities (v, w) that carry the pose before the step to it in dt
-// by the free-frame rule (linear; about a fixed axis at a constant rate): the
-// chord of the link's step, for turns below Bullet's pi/4 clamp.
+// linearly and about a fixed axis at a constant rate: the chord of the link's step.
 Out<-1, 13> frame_rows(const ChainMotion &motion, const Ints &links, double dt) {
     expect(links, "links", {-1});
     if (!(dt > 0.0) || !std::isfinite(dt)) throw nb::value_error("dt must be finite and > 0");
@@ -145,18 +144,14 @@ Out<-1, 13> frame_rows(const ChainMotion &motion, const Ints &links, double dt) 
             motion.link_pose(link, 0.0, p0);
             motion.link_pose(link, 1.0, p1);
         }
-        double *v = p1 + 7, *w = p1 + 10;
-        for (int i = 0; i < 3; ++i) v[i] = (p1[i] - p0[i]) / dt;
-        // q1 q0^-1 (x y z w): the turn from the pose before to the pose after.
-        const double *a1 = p1 + 3, *b = p0 + 3;
-        double x[3] = {b[3] * a1[0] - a1[3] * b[0] - (a1[1] * b[2] - a1[2] * b[1]),
-                       b[3] * a1[1] - a1[3] * b[1] - (a1[2] * b[0] - a1[0] * b[2]),
-                       b[3] * a1[2] - a1[3] * b[2] - (a1[0] * b[1] - a1[1] * b[0])};
-        const double c = a1[3] * b[3] + a1[0] * b[0] + a1[1] * b[1] + a1[2] * b[2];
-        const double sgn = c < 0.0 ? -1.0 : 1.0;
-        const double sn = std::sqrt(x[0] * x[0] + x[1] * x[1] + x[2] * x[2]);
-        const double scale = sn > 0.0 ? sgn * 2.0 * std::atan2(sn, std::fabs(c)) / (sn * dt) : 0.0;
-        for (int i = 0; i < 3; ++i) w[i] = x[i] * scale;
+        // The chord as a move between two poses (step_path.hpp: the turn the short way round).
+        double row[kPathBoxSize];
+        const double identity[16] = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1}, unit[3] = {1, 1, 1};
+        path_row_between(p0, p1, identity, unit, row);
+        for (int i = 0; i < 3; ++i) {
+            p1[7 + i] = row[PathRow::kDisplacement + i] / dt;
+            p1[10 + i] = row[PathRow::kAxis + i] * row[PathRow::kAngle] / dt;
+        }
     }
     return a;
 }

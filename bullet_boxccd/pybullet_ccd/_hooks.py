@@ -237,24 +237,26 @@ def _create_multibody(args, kwargs, result):
     _note_self_collision(j, named.get("flags"), result)
 
 
-def _load_urdf(args, kwargs, result):
-    j = _on_create(_cid(args, kwargs, 7), result)
-    named = _named(_LOAD_URDF, args, kwargs)
-    path = _resolve(j, named["fileName"])
+def _load_file(name, names, file_arg, i_cid, args, kwargs, result):
+    """The journal's record of a body loaded from a file: (journal, named arguments with the
+    file as an absolute path, that path or None if it cannot be found)."""
+    j = _on_create(_cid(args, kwargs, i_cid), result)
+    named = _named(names, args, kwargs)
+    path = _resolve(j, named[file_arg])
     if path is not None:
-        named["fileName"] = os.path.abspath(path)
-    _note_maximal(j, "loadURDF", named, result)
+        named[file_arg] = os.path.abspath(path)
+    _note_maximal(j, name, named, result)
+    return j, named, path
+
+
+def _load_urdf(args, kwargs, result):
+    j, named, path = _load_file("loadURDF", _LOAD_URDF, "fileName", 7, args, kwargs, result)
     _note_self_collision(j, named.get("flags"), result)
     _read_file_groups(j, result, path)
 
 
 def _load_sdf(args, kwargs, result):
-    j = _on_create(_cid(args, kwargs, 3), result)
-    named = _named(_LOAD_SDF, args, kwargs)
-    path = _resolve(j, named["sdfFileName"])
-    if path is not None:
-        named["sdfFileName"] = os.path.abspath(path)
-    _note_maximal(j, "loadSDF", named, result)
+    _load_file("loadSDF", _LOAD_SDF, "sdfFileName", 3, args, kwargs, result)
 
 
 def _load_mjcf(args, kwargs, result):

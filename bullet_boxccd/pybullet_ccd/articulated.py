@@ -37,8 +37,8 @@ from ..solver import Outcome
 from ._hooks import raw
 from .chain import read_chain
 from .events import CCDEvent
-from .impact import _pose4, _pose7
-from .layout import POSE, TWIST
+from .impact import _pose4, _pose7, bounce, place
+from .layout import ANGULAR_VELOCITY, POSE, TWIST, VELOCITY
 from .sweep import CREEP
 from .world import FREE, LINK
 
@@ -58,6 +58,9 @@ class _Body:
     qdot: np.ndarray = None
     paths: dict = field(default_factory=dict)  # box -> BoxPath of the current step
     link_of_frame: np.ndarray = None  # (len(frames),) int64: each frame's link
+    moving_joints: list = None  # its joints that are not fixed, and where each one's
+    q_spans: list = None  # coordinates and velocities lie in the flat q and qdot
+    qdot_spans: list = None
 
 
 class Articulated:
@@ -82,6 +85,13 @@ class Articulated:
                                    _excluded(chain.parent, bits) if bits is not None else None)
         for rec in self.bodies.values():
             rec.link_of_frame = np.array([rec.links[f] for f in rec.frames], dtype=np.int64)
+            ch = rec.chain
+            rec.moving_joints = [j for j in range(ch.n_links) if ch.joint_type[j] != pybullet.JOINT_FIXED]
+            spherical = [ch.joint_type[j] == pybullet.JOINT_SPHERICAL for j in rec.moving_joints]
+            rec.q_spans = [(int(ch.q_index[j]), int(ch.q_index[j]) + (4 if s else 1))
+                           for j, s in zip(rec.moving_joints, spherical)]
+            rec.qdot_spans = [(int(ch.qdot_index[j]), int(ch.qdot_index[j]) + (3 if s else 1))
+                              for j, s in zip(rec.moving_joints, spherical)]
         self.frames = {f for rec in self.bodies.values() for f in rec.frames}
         self.boxes = np.array(sorted(i for rec in self.bodies.values() for _, i in rec.boxes), dtype=np.int64)
         self._rigid = np.setdiff1d(np.arange(len(tables.radius)), self.boxes, assume_unique=True)
@@ -107,7 +117,7 @@ class Articulated:
             state.rows[rec.frames] = rec.motion.frame_rows(rec.link_of_frame, dt)
             state.fresh.update(rec.frames)
 
-    def _path(self, rec, box, state, dt):
+    def _path(self, rec, box, dt):
         path = rec.paths.get(box)
         if path is None:
             t = self.tables
@@ -131,14 +141,14 @@ class Articulated:
         fast = []
         for rec in self.bodies.values():
             for f, i in rec.boxes:
-                path = self._path(rec, i, state, dt)
+                path = self._path(rec, i, dt)
                 if 2.0 * path.travel(0.0, 1.0) > sweep_reach[i]:
                     fast.append((rec, f, i, path))
         if not fast:
             return [], {}, set()
         stats.swept_boxes += len(fast)
         slack = self._slack(state, dt) + 1e-9
-        linked = self._linked_bounds(fast, state, dt)
+        linked = self._linked_bounds(fast, dt)
         found = []  # ((touch, act at, contact, initial), rec, frame, partner frame)
         cache, seen = {}, set()
         for rec, f, i, path in fast:
@@ -192,7 +202,7 @@ class Articulated:
         w = np.linalg.norm(rows[:, 10:13], axis=1)
         return float(np.max((v + w * t.radius[rigid]) * dt))
 
-    def _linked_bounds(self, fast, state, dt):
+    def _linked_bounds(self, fast, dt):
         """{box: [lo (3), hi (3)]} swept bounds of the articulated bodies' boxes that may meet a fast
         one: every box of a body with self-collision and a fast box, and, when there are
         several articulated bodies, all of theirs."""
@@ -203,7 +213,7 @@ class Articulated:
         for b in bodies:
             rec = self.bodies[b]
             for _, j in rec.boxes:
-                out[j] = self._path(rec, j, state, dt).bounds(4).tolist()
+                out[j] = self._path(rec, j, dt).bounds(4).tolist()
         return out
 
     def _collide(self, rec, f, g):
@@ -221,7 +231,7 @@ class Articulated:
         t = self.tables
         rec = self.bodies.get(int(t.body[g]))
         if rec is not None and rec.motion is not None:
-            return self._path(rec, j, state, dt)
+            return self._path(rec, j, dt)
         if ("row", j) not in cache:
             state.read_poses(state.stale([g]))
             row = _core.path_rows(state.rows, dt, np.array([j], dtype=np.int64), t.box_frame, t.X_CS, t.half)[0]
@@ -270,18 +280,9 @@ class Articulated:
         X1 = turn @ X
         _, n = _core.paths_separation(pair[0], pair[1], tau)
         n = turn[:3, :3] @ n
-        v_link = state.rows[f, 7:10] + np.cross(state.rows[f, 10:13], X1[:3, 3] - F_1[:3, 3])
-        v, w = state.rows[g, 7:10].copy(), state.rows[g, 10:13].copy()
-        approach = float(np.dot(v - v_link, n))
-        if approach < 0.0:
-            e = (raw.getDynamicsInfo(*self.tables.keys[g], physicsClientId=self.cid)[5] *
-                 raw.getDynamicsInfo(*self.tables.keys[f], physicsClientId=self.cid)[5])
-            v -= (1.0 + e) * approach * n
-        pose = _pose7(X1)
-        body = self.tables.keys[g][0]
-        raw.resetBasePositionAndOrientation(body, pose[:3].tolist(), pose[3:].tolist(), physicsClientId=self.cid)
-        raw.resetBaseVelocity(body, v.tolist(), w.tolist(), physicsClientId=self.cid)
-        state.rows[g, POSE], state.rows[g, 7:10] = pose, v
+        v_link = state.rows[f, VELOCITY] + np.cross(state.rows[f, ANGULAR_VELOCITY], X1[:3, 3] - F_1[:3, 3])
+        v = bounce(self.cid, self.tables, g, f, state.rows[g, VELOCITY], v_link, n)
+        place(self.cid, self.tables, state, g, _pose7(X1), v, state.rows[g, ANGULAR_VELOCITY].copy())
 
     # ------------------------------------------------------------ stopping
     def stop(self, rec, tau, state):
@@ -292,16 +293,10 @@ class Articulated:
         raw.resetBasePositionAndOrientation(rec.body, base[:3].tolist(), base[3:].tolist(), physicsClientId=cid)
         raw.resetBaseVelocity(rec.body, rec.base_state[7:10].tolist(), rec.base_state[10:13].tolist(),
                               physicsClientId=cid)
-        q = m.joint_positions(tau)
-        ch = rec.chain
-        for j in range(ch.n_links):
-            kind = int(ch.joint_type[j])
-            if kind == pybullet.JOINT_FIXED:
-                continue
-            qi, di = int(ch.q_index[j]), int(ch.qdot_index[j])
-            nq, nd = (4, 3) if kind == pybullet.JOINT_SPHERICAL else (1, 1)
-            raw.resetJointStateMultiDof(rec.body, j, q[qi:qi + nq].tolist(), rec.qdot[di:di + nd].tolist(),
-                                        physicsClientId=cid)
+        if rec.moving_joints:
+            q, qdot = m.joint_positions(tau).tolist(), rec.qdot.tolist()
+            raw.resetJointStatesMultiDof(rec.body, rec.moving_joints, [q[a:b] for a, b in rec.q_spans],
+                                         [qdot[a:b] for a, b in rec.qdot_spans], physicsClientId=cid)
         ends = m.link_poses(tau)
         for f in rec.frames:
             link = rec.links[f]

@@ -522,16 +522,8 @@ class Impacts:
         """Frame d's velocity after a collision, at ``point`` along ``normal`` (from the
         pusher), with an immovable body moving as kinematic frame k moved over the whole
         step (its jump and the step's own motion), its own velocity v before."""
-        v_k = self._kinematic_velocity(state, dt, k, point)
-        v = np.array(v, float)
-        if np.all(np.isfinite(normal)):
-            approach = float(np.dot(v - v_k, normal))
-            if approach < 0.0:
-                e = (raw.getDynamicsInfo(*tables.keys[d], physicsClientId=self.cid)[5] *
-                     raw.getDynamicsInfo(*tables.keys[k], physicsClientId=self.cid)[5])
-                v = v - (1.0 + e) * approach * normal
         self.stats.pushes += 1
-        return v
+        return bounce(self.cid, tables, d, k, v, self._kinematic_velocity(state, dt, k, point), normal)
 
     @staticmethod
     def _kinematic_velocity(state, dt, k, point):
@@ -544,10 +536,7 @@ class Impacts:
         return move[PATH_ROW["displacement"]] / dt + np.cross(omega, point - e1[:3])
 
     def _place(self, tables, state, f, pose, v, w):
-        b = tables.keys[f][0]
-        raw.resetBasePositionAndOrientation(b, pose[:3].tolist(), pose[3:].tolist(), physicsClientId=self.cid)
-        raw.resetBaseVelocity(b, np.asarray(v).tolist(), np.asarray(w).tolist(), physicsClientId=self.cid)
-        state.rows[f, POSE], state.rows[f, VELOCITY], state.rows[f, ANGULAR_VELOCITY] = pose, v, w
+        place(self.cid, tables, state, f, pose, v, w)
 
     def _contact(self, pair, lo, hi):
         """The first touch of a pair (path rows) in [lo, hi] (step fractions): one solve on
@@ -558,6 +547,30 @@ class Impacts:
         c = _core.path_contact(pair, lo, hi, self.tolerances._core)
         self.stats.outcomes[Outcome.SEPARATED if c is None else c.outcome] += 1
         return c
+
+
+# ------------------------------------------------------- shared with articulated.py
+def place(cid, tables, state, f, pose, v, w):
+    """Put free frame f's body at ``pose`` (centre of mass: position, quaternion) with
+    velocities v, w, in pybullet and in the frame-state rows."""
+    b = tables.keys[f][0]
+    raw.resetBasePositionAndOrientation(b, pose[:3].tolist(), pose[3:].tolist(), physicsClientId=cid)
+    raw.resetBaseVelocity(b, np.asarray(v).tolist(), np.asarray(w).tolist(), physicsClientId=cid)
+    state.rows[f, POSE], state.rows[f, VELOCITY], state.rows[f, ANGULAR_VELOCITY] = pose, v, w
+
+
+def bounce(cid, tables, d, k, v, v_k, normal):
+    """Frame d's velocity (v before) after a collision along ``normal`` (from the pusher)
+    with an immovable body moving at v_k there, frame k's: pybullet's combined
+    restitution on the approach, nothing if they part already."""
+    v = np.array(v, float)
+    if np.all(np.isfinite(normal)):
+        approach = float(np.dot(v - v_k, normal))
+        if approach < 0.0:
+            e = (raw.getDynamicsInfo(*tables.keys[d], physicsClientId=cid)[5] *
+                 raw.getDynamicsInfo(*tables.keys[k], physicsClientId=cid)[5])
+            v = v - (1.0 + e) * approach * normal
+    return v
 
 
 # ---------------------------------------------------------------- geometry
