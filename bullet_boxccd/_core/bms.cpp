@@ -182,41 +182,46 @@ Pair::Pair(const BoxInput &a, const BoxInput &b, double t0_, double t1_, const T
 // table, written out): a face axis of A sees det A on its own generator and
 // S[0][i][.] on B's; an edge-edge axis (i, j) sees S[0][m][j] on A's other two
 // generators and S[1][m][i] on B's (m the third index). Written for the
-// compiler: the normals stay in registers, nothing is stored but the results.
+// compiler: every index is a constant after inlining (no loop counters, no
+// modulo), the normals stay in registers, nothing is stored but the results.
 void axes_at(const Pair &pair, const Vec3 *gs, const Vec3 &d, AxesAt &v) {
     const double *h = pair.h;
     constexpr double kParallel2 = kParallel * kParallel;
-    double len2[6];
-    for (int g = 0; g < 6; ++g) len2[g] = dot3(gs[g], gs[g]);
+    const double len2[6] = {dot3(gs[0], gs[0]), dot3(gs[1], gs[1]), dot3(gs[2], gs[2]),
+                            dot3(gs[3], gs[3]), dot3(gs[4], gs[4]), dot3(gs[5], gs[5])};
     double S[2][3][3], det[2];  // |S[q][i][l]| and |det|
+    // Face axis 3q + i: n = own[i+1] x own[i+2] (generators u, w of box q).
+    const auto face = [&](int q, int i, int u, int w) {
+        const Vec3 n = cross3(gs[u], gs[w]);
+        const int ax = 3 * q + i, o = 3 * (1 - q);
+        v.nn2[ax] = dot3(n, n);
+        v.nd[ax] = dot3(n, d);
+        v.direction[ax] = v.nn2[ax] > kParallel2 * len2[u] * len2[w];
+        S[q][i][0] = std::fabs(dot3(n, gs[o]));
+        S[q][i][1] = std::fabs(dot3(n, gs[o + 1]));
+        S[q][i][2] = std::fabs(dot3(n, gs[o + 2]));
+        if (i == 0) det[q] = std::fabs(dot3(n, gs[3 * q]));
+    };
+    face(0, 0, 1, 2), face(0, 1, 2, 0), face(0, 2, 0, 1);
+    face(1, 0, 4, 5), face(1, 1, 5, 3), face(1, 2, 3, 4);
     for (int q = 0; q < 2; ++q) {
-        const Vec3 *own = gs + 3 * q, *other = gs + 3 * (1 - q);
-        for (int i = 0; i < 3; ++i) {
-            const Vec3 n = cross3(own[(i + 1) % 3], own[(i + 2) % 3]);
-            const int ax = 3 * q + i;
-            v.nn2[ax] = dot3(n, n);
-            v.nd[ax] = dot3(n, d);
-            v.direction[ax] = v.nn2[ax] > kParallel2 * len2[3 * q + (i + 1) % 3] * len2[3 * q + (i + 2) % 3];
-            for (int l = 0; l < 3; ++l) S[q][i][l] = std::fabs(dot3(n, other[l]));
-            if (i == 0) det[q] = std::fabs(dot3(n, own[0]));
-        }
-        for (int i = 0; i < 3; ++i) {
-            const double *ho = h + 3 * (1 - q);
+        const double *ho = h + 3 * (1 - q);
+        for (int i = 0; i < 3; ++i)
             v.support[3 * q + i] = h[3 * q + i] * det[q] + ho[0] * S[q][i][0] + ho[1] * S[q][i][1] + ho[2] * S[q][i][2];
-        }
     }
-    for (int i = 0; i < 3; ++i) {
-        const int i1 = (i + 1) % 3, i2 = (i + 2) % 3;
-        for (int j = 0; j < 3; ++j) {
-            const int j1 = (j + 1) % 3, j2 = (j + 2) % 3, ax = 6 + 3 * i + j;
-            const Vec3 n = cross3(gs[i], gs[3 + j]);
-            v.nn2[ax] = dot3(n, n);
-            v.nd[ax] = dot3(n, d);
-            v.direction[ax] = v.nn2[ax] > kParallel2 * len2[i] * len2[3 + j];
-            // h_a[k] |S[0][m][j]| for k != i (m = 3 - k - i), h_b[l] |S[1][m][i]| for l != j.
-            v.support[ax] = h[i1] * S[0][i2][j] + h[i2] * S[0][i1][j] + h[3 + j1] * S[1][j2][i] + h[3 + j2] * S[1][j1][i];
-        }
-    }
+    // Edge-edge axis (i, j): n = a_i x b_j; (i1, i2) and (j1, j2) the other two indices.
+    const auto edge = [&](int i, int j, int i1, int i2, int j1, int j2) {
+        const int ax = 6 + 3 * i + j;
+        const Vec3 n = cross3(gs[i], gs[3 + j]);
+        v.nn2[ax] = dot3(n, n);
+        v.nd[ax] = dot3(n, d);
+        v.direction[ax] = v.nn2[ax] > kParallel2 * len2[i] * len2[3 + j];
+        // h_a[k] |S[0][m][j]| for k != i (m = 3 - k - i), h_b[l] |S[1][m][i]| for l != j.
+        v.support[ax] = h[i1] * S[0][i2][j] + h[i2] * S[0][i1][j] + h[3 + j1] * S[1][j2][i] + h[3 + j2] * S[1][j1][i];
+    };
+    edge(0, 0, 1, 2, 1, 2), edge(0, 1, 1, 2, 2, 0), edge(0, 2, 1, 2, 0, 1);
+    edge(1, 0, 2, 0, 1, 2), edge(1, 1, 2, 0, 2, 0), edge(1, 2, 2, 0, 0, 1);
+    edge(2, 0, 0, 1, 1, 2), edge(2, 1, 0, 1, 2, 0), edge(2, 2, 0, 1, 0, 1);
 }
 
 Cofactors::Cofactors(const Pair &pair) : pair_(pair) {}
