@@ -15,7 +15,7 @@ import pytest
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 SOLVER_TESTS = ["test_solver.py", "test_solver_oracle.py", "test_solver_poly.py", "test_properties.py",
-                "test_fuzz.py", "test_stress.py", "test_bms_planes.py", "test_step_path.py"]
+                "test_fuzz.py", "test_stress.py", "test_bms_planes.py", "test_step_path.py", "test_validate.py"]
 
 
 @pytest.mark.stress

@@ -53,6 +53,10 @@ def test_solver_answers_pass_the_checker(name):
     got = counts(c.verdict)
     assert got["miss"] == got["late"] == got["false_hit"] == got["unresolved"] == 0, got
     assert got["hit"] == np.isfinite(ts).sum()
+    # Early answers are counted, not failed, by the checker (the solver rounds early); on these
+    # seeded batches none is early beyond the touching tolerance, so an early one is a defect
+    # (it is how an answer given too soon, such as always t_range[0], shows).
+    assert not c.early.any(), f"{c.early.sum()} answers with the boxes still apart, up to {np.nanmax(c.early_gap):.2e}"
 
 
 @pytest.mark.parametrize("name", ["scale", "rotation", "far", "both_moving", "one_static", "aspect", "speed"])
@@ -77,13 +81,19 @@ def test_injected_faults_agree_with_the_independent_oracle():
     certified ghosts are apart there at the reported time."""
     b, ts = solved("one_static", n=60)
     c = C.check(b, ts)
+    got = counts(c.verdict)  # the solver's own answers pass
+    assert got["miss"] == got["late"] == got["false_hit"] == 0 and got["hit"] > 20 and not c.early.any(), got
     hit, apart = c.verdict == C.HIT, c.verdict == C.CLEAR_MISS
     cm = C.check(b, np.where(hit, np.nan, ts))
-    for i in np.nonzero(cm.verdict == C.MISS)[0][:10]:
+    misses = np.nonzero(cm.verdict == C.MISS)[0][:10]
+    assert len(misses) == 10
+    for i in misses:
         assert mp_gap(as_case(b, i), cm.evidence[i]) < 0
     t_ghost = b.t_range[0] + 0.5 * (b.t_range[1] - b.t_range[0])
     cg = C.check(b, np.where(apart, t_ghost, ts))
-    for i in np.nonzero(cg.verdict == C.FALSE_HIT)[0][:10]:
+    ghosts = np.nonzero(cg.verdict == C.FALSE_HIT)[0][:10]
+    assert len(ghosts) == 10
+    for i in ghosts:
         assert mp_gap(as_case(b, i), t_ghost) > 0
 
 
@@ -93,6 +103,7 @@ def test_grazing_touches_are_settled_by_mpmath_and_agree_with_the_oracle():
     (a miss) or a positive gap, and the oracle's 40-digit gap agrees with each."""
     b, ts = solved("grazing", seed=3, n=80)
     c = C.check(b, ts)
+    assert not c.early.any()
     zero = (b.param == 0) & (c.verdict == C.HIT)
     cm = C.check(b, np.where(zero, np.nan, ts))
     assert cm.mp[zero].all()
@@ -154,6 +165,8 @@ def test_last_line_and_table(tmp_path, capsys):
 
 def test_resume_runs_only_missing_shards(tmp_path, monkeypatch):
     full, _ = run(tmp_path, "full.jsonl")
+    total = full["total"]
+    assert total["hits"] > 300 and total["misses"] == total["late"] == total["false_hits"] == total["early"] == 0, total
     calls = []
     real = shards.run_shard
     monkeypatch.setattr(shards, "run_shard", lambda *a: calls.append(a[1]) or real(*a))
@@ -205,6 +218,11 @@ def test_failures_are_saved_and_replay_with_boxccd_toi(tmp_path, monkeypatch, ca
         t = real(*(np.asarray(case[k])[None] for k in ("lo_a", "hi_a", "coeffs_a", "lo_b", "hi_b", "coeffs_b")),
                  case["t_range"])[0]
         assert toi["hit"] and toi["t"] == t
+        # and that answer is a first contact, certified by the checker
+        one = QueryBatch(*(np.asarray(case[k], float)[None] for k in ("lo_a", "hi_a", "coeffs_a", "lo_b", "hi_b",
+                                                                      "coeffs_b")), tuple(case["t_range"]), np.zeros(1), "")
+        verdict = C.check(one, np.array([t]))
+        assert C.VERDICTS[verdict.verdict[0]] == "hit" and not verdict.early[0]
 
 
 def test_ray_missing_is_a_clear_error(monkeypatch):
