@@ -367,6 +367,35 @@ def test_time_range_forms_agree():
     assert len(ts) == 1 and abs(ts.pop() - 0.4) < 1e-11  # faces meet at 5 - 10 t = 1
 
 
+def test_single_calls_decide_regularity_as_the_batch_does():
+    """A QuadraticMotion bounds |det| of its 3x3 part on [0, 1] once, at construction;
+    single calls on t_range (0, 1) skip their own check when that bound clears it, any
+    other range checks. Both must decide as the batch (which always checks) does: here
+    B's x axis scales by 1 - t / t_c, collapsing at t_c, for t_c on both sides of the
+    range's end and far inside and outside it."""
+    def raises(solve, *args):
+        try:
+            solve(*args)
+        except SingularMotionError:
+            return True
+        return False
+
+    seen = set()
+    for t_c in [0.5, 0.999, 1.0 - 1e-12, 1.0, 1.0 + 1e-14, 1.0 + 1e-13, 1.0 + 1e-12, 1.001, 2.0, 10.0]:
+        for t_range in [(0.0, 1.0), (0.0, 3.0), (0.5, 1.0)]:
+            c = QuadraticMotion.static().coeffs.copy()
+            c[1, 0, 0] = -1.0 / t_c
+            rows = batch_rows(1)
+            rows[5][0] = c
+            single = raises(time_of_impact, CUBE, STATIC, CUBE, QuadraticMotion(c), t_range)
+            batch = raises(time_of_impact_batch, *rows, t_range)
+            assert single == batch, (t_c, t_range, single, batch)
+            seen.add(single)
+            if t_c <= 1.0 - 1e-12 and t_range[1] >= t_c or t_c >= 1.001 and t_range[1] < t_c:
+                assert single == (t_range[1] >= t_c), (t_c, t_range)
+    assert seen == {True, False}
+
+
 def test_errors_are_value_errors():
     for e in (InvalidBoxError, InvalidMotionError, InvalidShapeError, InvalidTimeRangeError, NonFiniteInputError,
               SingularMotionError):

@@ -169,7 +169,7 @@ bool search(const Pair &pair, Cofactors &cof, double start, double end, SearchSt
             s = piece.hi;
             continue;
         }
-        if (r <= s) {  // Horner and Bernstein disagree in the last bits: touching here
+        if (r <= s) {  // the value and the Bernstein bound disagree in the last bits: touching here
             touching |= 1u << best;
             continue;
         }

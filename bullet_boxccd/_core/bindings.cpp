@@ -56,6 +56,7 @@ struct BoxData {
 };
 struct MotionData {
     double c[48];
+    double det_floor;  // det_floor01(c): |det| of the 3x3 part on [0, 1] is at least this
 };
 
 BoxData make_box(const Vec3In &lo, const Vec3In &hi, const std::string &name) {
@@ -70,6 +71,7 @@ MotionData make_motion(const Coeffs &c, const std::string &name) {
     check_motion(c.data(), name);
     MotionData m;
     std::copy(c.data(), c.data() + 48, m.c);
+    m.det_floor = det_floor01(m.c);
     return m;
 }
 
@@ -86,7 +88,8 @@ struct CheckedQuery {
     CheckedQuery(const BoxData &a, const MotionData &m_a, const BoxData &b, const MotionData &m_b, double t0,
                  double t1, const Tolerances &tol)
         : q(input_in_range(a, m_a, t0, t1), {b.lo, b.hi, m_b.c}, t0, t1, tol) {
-        q.check_regular("m_a", "m_b");
+        const double floor[2] = {m_a.det_floor, m_b.det_floor};
+        q.check_regular("m_a", "m_b", floor);
     }
 };
 

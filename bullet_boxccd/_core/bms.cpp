@@ -150,18 +150,30 @@ Pair::Pair(const BoxInput &a, const BoxInput &b, double t0_, double t1_, const T
     dmag = summands + sum_abs3(cA.c[0]) + sum_abs3(cB.c[0]);
     size = hmag = 0.0;
     turning = false;
+    // Squared lengths first, square roots in one pass after (18 independent
+    // roots that the compiler can pair, rather than a chain of loop bodies each
+    // waiting on its own). A generator that does not turn has c1 = c2 = 0, so
+    // its bounds come out 0 without a branch.
+    double sq[3][6];
     for (int k = 0; k < 6; ++k) {
         const Vec3 &c1 = g[k].c[1], &c2 = g[k].c[2];
         const double m1 = sum_abs3(c1), m2 = sum_abs3(c2);
         gmag[k] = sum_abs3(g[k].c[0]) + m1 + m2;
         gdeg[k] = m1 + m2 == 0.0 ? 0 : 2;
-        gbounds[k] = {0.0, 0.0};
-        if (gdeg[k])
-            gbounds[k] = {std::max(norm3(c1), norm3({c1[0] + 2.0 * c2[0], c1[1] + 2.0 * c2[1], c1[2] + 2.0 * c2[2]})),
-                          2.0 * norm3(c2)};
+        const Vec3 end = {c1[0] + 2.0 * c2[0], c1[1] + 2.0 * c2[1], c1[2] + 2.0 * c2[2]};  // g'(1)
+        sq[0][k] = std::max(dot3(c1, c1), dot3(end, end));  // |g'| is largest at an end: g' is linear
+        sq[1][k] = dot3(c2, c2);
+        const Vec3 mid = g[k].at(0.5);
+        sq[2][k] = dot3(mid, mid);
         hmag += h[k] * gmag[k];
-        size += h[k] * norm3(g[k].at(0.5));
         turning = turning || gdeg[k];
+    }
+    double root[3][6];
+    for (int i = 0; i < 3; ++i)
+        for (int k = 0; k < 6; ++k) root[i][k] = std::sqrt(sq[i][k]);
+    for (int k = 0; k < 6; ++k) {
+        gbounds[k] = {root[0][k], 2.0 * root[1][k]};
+        size += h[k] * root[2][k];
     }
     ddeg = sum_abs3(d.c[1]) + sum_abs3(d.c[2]) == 0.0 ? 0 : 2;
     const double rounding = tol.rounding * kEps * (dmag + hmag);
@@ -282,15 +294,34 @@ Poly det_poly(const Curve *g, bool turning) {
     return p;
 }
 
-void check_regular(const Pair &pair, const char *name_a, const char *name_b) {
+double det_floor01(const double *C) {
+    Curve g[3];
+    bool turning = false;
+    for (int i = 0; i < 3; ++i)
+        for (int k = 0; k < 3; ++k)
+            for (int r = 0; r < 3; ++r) {
+                g[i].c[k][r] = C[k * 16 + r * 4 + i];
+                turning = turning || (k > 0 && g[i].c[k][r] != 0.0);
+            }
+    const Poly det = det_poly(g, turning);
+    if (!finite_poly(det) || det.c[0] == 0.0) return 0.0;
+    const Bernstein bz = to_bernstein((det.c[0] > 0.0 ? 1.0 : -1.0) * det, 0.0, 1.0);
+    double floor = bz.b[0];
+    for (int i = 1; i <= bz.deg; ++i) floor = std::min(floor, bz.b[i]);
+    return std::max(floor, 0.0);
+}
+
+void check_regular(const Pair &pair, const char *name_a, const char *name_b, const double *floor) {
     const char *names[2] = {name_a, name_b};
+    const bool unit_range = pair.t0 == 0.0 && pair.t1 == 1.0;  // then the curves are the coefficients as given
     for (int q = 0; q < 2; ++q) {
+        const double noise = pair.tol.rounding * kEps * pair.gmag[3 * q] * pair.gmag[3 * q + 1] * pair.gmag[3 * q + 2];
+        if (floor && unit_range && floor[q] > 2.0 * noise) continue;
         const Poly det = det_poly(pair.g + 3 * q, pair.gdeg[3 * q] | pair.gdeg[3 * q + 1] | pair.gdeg[3 * q + 2]);
         if (!finite_poly(det))
             throw NonFiniteError(
                 "the boxes' extents, positions or motion coefficients are too large: intermediate products "
                 "overflow double precision");
-        const double noise = pair.tol.rounding * kEps * pair.gmag[3 * q] * pair.gmag[3 * q + 1] * pair.gmag[3 * q + 2];
         const double v0 = det(0.0);
         double s = std::fabs(v0) <= noise ? 0.0 : kNoRoot;
         if (std::isnan(s)) {

@@ -170,7 +170,16 @@ private:
     uint32_t n_built_ = 0, proj_built_ = 0;
 };
 
+// A lower bound of |det| of a motion's 3x3 part over t in [0, 1] (the smallest
+// Bernstein control point of the determinant times its sign at t = 0; 0 when that
+// is not positive), from its (3, 4, 4) coefficients. A motion object computes it
+// once, so that queries on t_range (0, 1) can skip their own regularity check.
+double det_floor01(const double *coeffs);
+
 // Raises SingularMotionError if A's or B's 3x3 part degenerates in range.
-void check_regular(const Pair &pair, const char *name_a, const char *name_b);
+// `floor` (optional): det_floor01 of A's and B's motions; on t_range (0, 1) a box
+// whose floor exceeds twice the check's rounding allowance is regular without the
+// check (the check would compute the same control points, less that allowance).
+void check_regular(const Pair &pair, const char *name_a, const char *name_b, const double *floor = nullptr);
 
 }  // namespace boxccd

@@ -69,8 +69,11 @@ public:
     Query(const Query &) = delete;
     Query &operator=(const Query &) = delete;
 
-    // Raises SingularMotionError if A's or B's 3x3 part degenerates in range.
-    void check_regular(const char *name_a, const char *name_b) { boxccd::check_regular(pair_, name_a, name_b); }
+    // Raises SingularMotionError if A's or B's 3x3 part degenerates in range
+    // (`floor`: see boxccd::check_regular).
+    void check_regular(const char *name_a, const char *name_b, const double *floor = nullptr) {
+        boxccd::check_regular(pair_, name_a, name_b, floor);
+    }
 
     Hit solve(bool want_geometry);
 

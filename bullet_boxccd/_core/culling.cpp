@@ -130,17 +130,26 @@ double apart_until(const Pair &pair, const Sample &at, const SeparatingAxis &axi
     // Kinks: where |a + b tau| turns back up (tau = -a / b, a + b tau shrinking), with
     // the change of A and B there; +inf where it does not. Branch-free: the signs
     // are data, and mispredicted branches cost more than the arithmetic.
-    double kink[6], dA[6], dB[6];
+    // In passes over arrays (the six divisions pair up in vector registers).
+    double a[6], b[6], c[6], kink[6], dA[6], dB[6];
     for (int g = 0; g < 6; ++g) {
-        const double a = dot3(n, at.g[g]), b = dot3(n, at.dg[g]), c = dot3(n, pair.g[g].c[2]);
-        const double sg = std::copysign(1.0, a != 0.0 ? a : b);  // the sign of a + b tau just after 0
-        const double ha = pair.h[g] * sg * a, hb = pair.h[g] * sg * b;
-        A -= ha;
-        B -= hb;
-        C -= pair.h[g] * std::fabs(c);
-        kink[g] = hb < 0.0 ? -a / b : std::numeric_limits<double>::infinity();
-        dA[g] = 2.0 * ha;
-        dB[g] = 2.0 * hb;
+        a[g] = dot3(n, at.g[g]);
+        b[g] = dot3(n, at.dg[g]);
+        c[g] = dot3(n, pair.g[g].c[2]);
+    }
+    for (int g = 0; g < 6; ++g) kink[g] = -a[g] / b[g];  // all six (b = 0 gives inf or NaN, not used)
+    for (int g = 0; g < 6; ++g) {
+        const double sg = std::copysign(1.0, a[g] != 0.0 ? a[g] : b[g]);  // the sign of a + b tau just after 0
+        dA[g] = pair.h[g] * sg * a[g];
+        dB[g] = pair.h[g] * sg * b[g];
+        if (!(dB[g] < 0.0)) kink[g] = std::numeric_limits<double>::infinity();
+    }
+    for (int g = 0; g < 6; ++g) {
+        A -= dA[g];
+        B -= dB[g];
+        C -= pair.h[g] * std::fabs(c[g]);
+        dA[g] *= 2.0;
+        dB[g] *= 2.0;
     }
     // Segment by segment, from tau = 0 up to the next kink, until a root.
     const double span = hi - at.s;
