@@ -219,8 +219,8 @@ def test_failures_are_saved_and_replay_with_boxccd_toi(tmp_path, monkeypatch, ca
                  case["t_range"])[0]
         assert toi["hit"] and toi["t"] == t
         # and that answer is a first contact, certified by the checker
-        one = QueryBatch(*(np.asarray(case[k], float)[None] for k in ("lo_a", "hi_a", "coeffs_a", "lo_b", "hi_b",
-                                                                      "coeffs_b")), tuple(case["t_range"]), np.zeros(1), "")
+        rows = (np.asarray(case[k], float)[None] for k in ("lo_a", "hi_a", "coeffs_a", "lo_b", "hi_b", "coeffs_b"))
+        one = QueryBatch(*rows, tuple(case["t_range"]), np.zeros(1), "")
         verdict = C.check(one, np.array([t]))
         assert C.VERDICTS[verdict.verdict[0]] == "hit" and not verdict.early[0]
 

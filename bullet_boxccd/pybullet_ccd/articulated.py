@@ -39,7 +39,7 @@ from .chain import read_chain
 from .events import CCDEvent
 from .impact import _pose4, _pose7, bounce, place
 from .layout import ANGULAR_VELOCITY, POSE, TWIST, VELOCITY
-from .sweep import CREEP
+from .sweep import CREEP, overlap_query
 from .world import FREE, LINK
 
 __all__ = ["Articulated"]
@@ -147,14 +147,13 @@ class Articulated:
         if not fast:
             return [], {}, set()
         stats.swept_boxes += len(fast)
-        slack = self._slack(state, dt) + 1e-9
+        slack = self._slack(state, dt)
         linked = self._linked_bounds(fast, dt)
         found = []  # ((touch, act at, contact, initial), rec, frame, partner frame)
         cache, seen = {}, set()
         for rec, f, i, path in fast:
             box = path.bounds(4).tolist()
-            near = raw.getOverlappingObjects([x - slack for x in box[:3]], [x + slack for x in box[3:]],
-                                             physicsClientId=self.cid) or ()
+            near = overlap_query(self.cid, box, slack)
             candidates = [(t.index[key], j) for key in near if key in t.index and t.index[key] not in self.frames
                           for j in t.frame_boxes[t.index[key]]]
             candidates += [(int(t.box_frame[j]), j) for j, other_box in linked.items() if _meet(box, other_box)]

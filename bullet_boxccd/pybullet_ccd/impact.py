@@ -643,7 +643,7 @@ def _patch_points(A, ha, B, hb, n):
     out = [np.mean(pts, axis=0)] if pts else []
     for X, h, d in ((A, ha, n), (B, hb, -n)):
         along = X[:3, :3].T @ d
-        lead = np.where(np.abs(along) > 1e-9, np.sign(along), 0.0)  # a face or edge leads: its centre
+        lead = np.where(np.abs(along) > 1e-9, np.sign(along), 0.0)  # (cosines) a face or edge leads: its centre
         out.append(X[:3, 3] + X[:3, :3] @ (lead * h))
     return out + pts
 

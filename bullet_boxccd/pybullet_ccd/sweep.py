@@ -24,11 +24,25 @@ from ._hooks import raw
 from .layout import POSE, TWIST
 from .world import FREE
 
-__all__ = ["Sweep", "sweep", "jump_sweep", "moves_into", "CREEP"]
+__all__ = ["Sweep", "sweep", "jump_sweep", "moves_into", "CREEP", "overlap_query"]
 
 # A pair touching when the step (or a window of it) begins is a contact pybullet holds
 # unless it presses in by more than this fraction of the thinner box's half extent.
 CREEP = 0.02
+
+# A broad-phase query box reaches this far (relative to its coordinates' magnitude)
+# beyond the swept bounds and the slack, so that a partner whose AABB only touches
+# them is not lost to the rounding of either; relative, so that a scene far from the
+# origin keeps the margin's meaning (1e-9 m for a box near 1 m from the origin).
+_QUERY_WIDEN = 1e-9
+
+
+def overlap_query(cid, box, slack):
+    """pybullet's getOverlappingObjects on bounds ``box`` = (x0, y0, z0, x1, y1, z1)
+    widened by ``slack`` (and ``_QUERY_WIDEN``); () when none."""
+    w = slack + _QUERY_WIDEN * max(abs(x) for x in box)
+    lo, hi = [x - w for x in box[:3]], [x + w for x in box[3:]]
+    return raw.getOverlappingObjects(lo, hi, physicsClientId=cid) or ()
 
 
 @dataclass
@@ -104,11 +118,9 @@ def sweep(cid, tables, state, dt, fit_tolerance, tolerances, penetration, stats,
 
 def _partners(cid, tables, bounds, slack, exclude):
     """Frames pybullet's broad phase finds within ``slack`` of the given bounds."""
-    near, index, w = set(), tables.index, slack + 1e-9
-    for x0, y0, z0, x1, y1, z1 in bounds.tolist():
-        found = raw.getOverlappingObjects((x0 - w, y0 - w, z0 - w), (x1 + w, y1 + w, z1 + w), physicsClientId=cid)
-        if found:
-            near.update(index[key] for key in found if key in index)
+    near, index = set(), tables.index
+    for box in bounds.tolist():
+        near.update(index[key] for key in overlap_query(cid, box, slack) if key in index)
     return sorted(near.difference(exclude))
 
 
