@@ -72,8 +72,8 @@ that also reaches zero tunneling.
 
 Run
 ---
-    cd /work/main && PYTHONPATH=/work/main python3 benchmarks/plugin.py            # < 5 min
-    cd /work/main && PYTHONPATH=/work/main python3 benchmarks/plugin.py --quick    # < 1 min
+    python benchmarks/plugin.py            # < 5 min
+    python benchmarks/plugin.py --quick    # < 1 min
 
 Options: ``--seed`` (default 2024), ``--trials`` (per N up to 100 boxes, default 6;
 larger scenes get a third of them, at least 1), ``--window``, ``--sizes``, ``--csv``.

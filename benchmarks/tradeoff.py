@@ -79,9 +79,8 @@ its launch reach (|v| dt / extent, what ``sweep_threshold`` is compared with).
 
 Run
 ---
-    cd /work/main && PYTHONPATH=/work/main python3 benchmarks/tradeoff.py            # < 8 min (210 trials,
-                                                                                      # each builds its scene)
-    cd /work/main && PYTHONPATH=/work/main python3 benchmarks/tradeoff.py --quick    # < 1 min
+    python benchmarks/tradeoff.py            # < 8 min (210 trials, each builds its scene)
+    python benchmarks/tradeoff.py --quick    # < 1 min
 
 Options: ``--seed`` (default 2024), ``--trials`` (default 10; 2 with --quick),
 ``--window`` (default 120; 72 with --quick: the impacts come by step 61),
