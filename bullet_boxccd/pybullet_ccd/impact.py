@@ -328,7 +328,12 @@ class Impacts:
             thin = min(w[0, PATH_ROW["half_extents"]].min(), w[1, PATH_ROW["half_extents"]].min())
             d0 = float(_core.path_depth(w, np.zeros(1))[0])
             target = max(d0, 0.0) + max(self.penetration, CREEP * thin)
-        if action != "push" and not _goes_wrong(w, s_touch, c, target):
+        # A pair whose impact the plugin resolved earlier in this step and that presses in
+        # again is the next strike of that impact (a spinning box's next corner): resolved
+        # as one more collision when it presses past the target, whatever pybullet would do
+        # with where it ends (after _LEAKS of them it is held).
+        again = paths.collisions.get((fa, fb), 0) + paths.collisions.get((fb, fa), 0) > 0
+        if action != "push" and not again and not _goes_wrong(w, s_touch, c, target):
             return info
         s_act = _core.first_depth(w, s_touch, target)
         if np.isnan(s_act):
