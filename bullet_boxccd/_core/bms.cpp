@@ -300,7 +300,7 @@ double det_floor01(const double *C) {
     for (int i = 0; i < 3; ++i)
         for (int k = 0; k < 3; ++k)
             for (int r = 0; r < 3; ++r) {
-                g[i].c[k][r] = C[k * 16 + r * 4 + i];
+                g[i].c[k][r] = coef(C, k, r, i);  // as box_in_s takes them on t_range (0, 1)
                 turning = turning || (k > 0 && g[i].c[k][r] != 0.0);
             }
     const Poly det = det_poly(g, turning);

@@ -332,8 +332,7 @@ class Impacts:
         # again is the next strike of that impact (a spinning box's next corner): resolved
         # as one more collision when it presses past the target, whatever pybullet would do
         # with where it ends (after _LEAKS of them it is held).
-        again = paths.collisions.get((fa, fb), 0) + paths.collisions.get((fb, fa), 0) > 0
-        if action != "push" and not again and not _goes_wrong(w, s_touch, c, target):
+        if action != "push" and (fa, fb) not in paths.collisions and not _goes_wrong(w, s_touch, c, target):
             return info
         s_act = _core.first_depth(w, s_touch, target)
         if np.isnan(s_act):
