@@ -23,7 +23,7 @@
 
 Run
 ---
-    python benchmarks/articulated.py            # ~1 min
+    python benchmarks/articulated.py            # ~4 min
 """
 
 from __future__ import annotations
