@@ -19,6 +19,8 @@ closer than doubles can separate), never a degraded answer dressed as a hit.
 from __future__ import annotations
 
 import enum
+import inspect
+import sys
 from dataclasses import dataclass
 from typing import NamedTuple, Optional
 
@@ -199,6 +201,8 @@ def _t_range(t_range) -> tuple[float, float]:
 
 
 def _core_tolerances(tolerances):
+    if tolerances is None:
+        return DEFAULT_TOLERANCES._core
     if not isinstance(tolerances, Tolerances):
         raise InvalidInputError(f"tolerances: expected a Tolerances, got {type(tolerances).__name__}")
     return tolerances._core
@@ -211,26 +215,30 @@ def _pair_args(a, m_a, b, m_b):
     return a._data, m_a._data, b._data, m_b._data
 
 
-def time_of_impact(
+def _time_of_impact(
     a: Box,
     m_a: QuadraticMotion,
     b: Box,
     m_b: QuadraticMotion,
     t_range=(0.0, 1.0),
-    tolerances: Tolerances = DEFAULT_TOLERANCES,
+    tolerances: Optional[Tolerances] = None,
 ) -> Optional[Contact]:
     """First time in ``t_range`` at which box ``a`` moving by ``m_a`` touches box ``b``
-    moving by ``m_b``; None if they never do.
+    moving by ``m_b``; None if they never do. ``tolerances``: None for the defaults.
 
     Raises an ``InvalidInputError`` subclass for bad input (for example
     ``SingularMotionError`` when a 3x3 part collapses inside ``t_range``).
     """
-    try:  # the common case: one core call, which rejects wrong types with a TypeError
-        return _core.solve(a._data, m_a._data, b._data, m_b._data, t_range, tolerances._core)
-    except (AttributeError, TypeError):
-        pass
-    # Something is of the wrong type or shape: the checks below say what.
     return _core.solve(*_pair_args(a, m_a, b, m_b), _t_range(t_range), _core_tolerances(tolerances))
+
+
+# The public function is a builtin made by the core from the one above: the common
+# call (boxes, motions, a tuple of two floats, Tolerances) runs no Python code; any
+# other call, and any the core raises on, runs the function above, which converts
+# or names what is wrong.
+time_of_impact = _core.make_time_of_impact(
+    sys.modules[__name__], "_time_of_impact", tuple(inspect.signature(_time_of_impact).parameters),
+    "time_of_impact(a, m_a, b, m_b, t_range=(0.0, 1.0), tolerances=None)\n--\n\n" + inspect.getdoc(_time_of_impact))
 
 
 def time_of_impact_batch(

@@ -82,6 +82,7 @@ def pytest_configure(config):
 
         for name, stub in _broken_core(mode).items():
             setattr(_core, name, stub)
+        _core.set_fast_time_of_impact(False)  # time_of_impact's common call would not reach the stub
         settings.load_profile("broken")
 
 

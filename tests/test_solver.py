@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import inspect
 import pickle
 from concurrent.futures import ThreadPoolExecutor
 
@@ -344,6 +345,50 @@ def test_wrong_argument_types(args, error, message):
     the core rejects by type still gets the named error."""
     with pytest.raises(error, match=message):
         time_of_impact(*args())
+
+
+def test_every_call_form_gives_the_python_functions_answer():
+    """time_of_impact is a builtin that takes the common call straight to the core and
+    hands every other form to its Python function: positional, keyword, mixed, None
+    or explicit tolerances, other t_range types, and calls that must fail the same way."""
+    from bullet_boxccd.solver import _time_of_impact
+
+    m_b = QuadraticMotion.ballistic((5.0, 0.3, 0.2), (-10.0, 0.0, 0.0))
+    tight = Tolerances(gap_rel=0.0)
+    forms = [
+        ((CUBE, STATIC, CUBE, m_b), {}),
+        ((CUBE, STATIC, CUBE, m_b, (0.0, 0.5)), {}),
+        ((CUBE, STATIC, CUBE, m_b, (0.0, 0.5), tight), {}),
+        ((CUBE, STATIC, CUBE, m_b), dict(t_range=(0.0, 0.5))),
+        ((CUBE, STATIC, CUBE, m_b), dict(tolerances=None)),
+        ((CUBE, STATIC, CUBE, m_b), dict(tolerances=tight, t_range=(0.25, 1.0))),
+        ((), dict(a=CUBE, m_a=STATIC, b=CUBE, m_b=m_b, t_range=[0, 1])),
+        ((CUBE, STATIC), dict(m_b=m_b, b=CUBE)),
+        ((CUBE, STATIC, CUBE, m_b, (0.0, 0.3)), {}),  # stays apart: None
+    ]
+    answers = set()
+    for args, kwargs in forms:
+        got, want = time_of_impact(*args, **kwargs), _time_of_impact(*args, **kwargs)
+        assert (got is None) == (want is None), (args, kwargs)
+        if got is not None:
+            assert got.t == want.t and got.feature == want.feature and got.outcome == want.outcome
+            assert np.array_equal(got.point, want.point) and np.array_equal(got.normal, want.normal)
+        answers.add(None if got is None else got.t)
+    assert None in answers and all(abs(t - 0.4) < 1e-11 for t in answers - {None})  # faces meet at 5 - 10 t = 1
+    for args, kwargs, error in [
+        ((CUBE, STATIC, CUBE), {}, TypeError),  # too few
+        ((CUBE, STATIC, CUBE, m_b, (0.0, 1.0), None, None), {}, TypeError),  # too many
+        ((CUBE, STATIC, CUBE, m_b), dict(a=CUBE), TypeError),  # a twice
+        ((CUBE, STATIC, CUBE, m_b), dict(t_rnge=(0.0, 1.0)), TypeError),  # no such keyword
+        ((CUBE, STATIC, CUBE, m_b, (1.0, 0.0)), {}, InvalidTimeRangeError),  # raised by the core, named by Python
+    ]:
+        with pytest.raises(error) as raised:
+            time_of_impact(*args, **kwargs)
+        with pytest.raises(error) as raised_by_python:
+            _time_of_impact(*args, **kwargs)
+        assert str(raised.value) == str(raised_by_python.value)
+    assert str(inspect.signature(time_of_impact)) == "(a, m_a, b, m_b, t_range=(0.0, 1.0), tolerances=None)"
+    assert time_of_impact.__module__ == "bullet_boxccd.solver" and "First time in" in time_of_impact.__doc__
 
 
 def test_contacts_behave_like_their_named_tuples():

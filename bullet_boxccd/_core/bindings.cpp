@@ -223,6 +223,101 @@ nb::object solve(const BoxData &a, const MotionData &m_a, const BoxData &b, cons
     return hit_result(p.q.solve(true));
 }
 
+// time_of_impact itself: a builtin function of bullet_boxccd.solver (its `self`)
+// that takes the common call straight to the core (Box, QuadraticMotion, Box,
+// QuadraticMotion, then optionally a tuple of two floats and a Tolerances or
+// None, by position or keyword: no Python code runs) and hands every other call,
+// and every call the core raises on, to the module's Python function of the same
+// signature, which checks the arguments, names what is wrong and solves: every
+// error is raised by that one function, with its one message.
+struct Entry {
+    PyObject *names[6];           // interned parameter names
+    PyObject *data, *core, *slow;  // "_data", "_core", the Python function's name
+    PyTypeObject *box, *motion, *tolerances;
+    bool fast = true;  // false: every call runs the Python function (tests swap its core calls for stubs)
+};
+Entry &entry() {
+    static Entry *e = new Entry{};  // never freed: lives as long as the module
+    return *e;
+}
+
+// The instance of the bound type `type` in obj's attribute `attr` (a borrowed
+// pointer, kept alive by `hold`), or nullptr if there is none.
+template <class T> const T *held(PyObject *obj, PyObject *attr, PyTypeObject *type, nb::object &hold) {
+    PyObject *d = PyObject_GetAttr(obj, attr);
+    if (!d) {
+        PyErr_Clear();
+        return nullptr;
+    }
+    hold = nb::steal(d);
+    return Py_TYPE(d) == type ? nb::inst_ptr<T>(hold) : nullptr;
+}
+
+PyObject *time_of_impact_entry(PyObject *module, PyObject *const *args, Py_ssize_t nargs, PyObject *kwnames) {
+    const Entry &e = entry();
+    PyObject *arg[6] = {};
+    bool fast = e.fast && nargs <= 6;
+    for (Py_ssize_t i = 0; fast && i < nargs; ++i) arg[i] = args[i];
+    const Py_ssize_t nkw = kwnames ? PyTuple_GET_SIZE(kwnames) : 0;
+    for (Py_ssize_t j = 0; fast && j < nkw; ++j) {
+        PyObject *name = PyTuple_GET_ITEM(kwnames, j);
+        int k = 0;
+        while (k < 6 && name != e.names[k]) ++k;  // the keywords of a call are usually interned
+        for (int i = 0; k == 6 && i < 6; ++i)
+            if (PyUnicode_Compare(name, e.names[i]) == 0) k = i;
+        fast = k < 6 && !arg[k];
+        if (fast) arg[k] = args[nargs + j];
+    }
+    if (fast && arg[0] && arg[1] && arg[2] && arg[3]) {
+        try {
+            nb::object hold[5];
+            const BoxData *a = held<BoxData>(arg[0], e.data, e.box, hold[0]),
+                          *b = held<BoxData>(arg[2], e.data, e.box, hold[2]);
+            const MotionData *m_a = held<MotionData>(arg[1], e.data, e.motion, hold[1]),
+                             *m_b = held<MotionData>(arg[3], e.data, e.motion, hold[3]);
+            static const Tolerances defaults{};
+            const Tolerances *tol =
+                !arg[5] || arg[5] == Py_None ? &defaults : held<Tolerances>(arg[5], e.core, e.tolerances, hold[4]);
+            if (a && m_a && b && m_b && tol) {
+                const auto [t0, t1] = arg[4] ? float_pair(arg[4]) : std::pair<double, double>(0.0, 1.0);
+                CheckedQuery q(*a, *m_a, *b, *m_b, t0, t1, *tol);
+                return hit_result(q.q.solve(true)).release().ptr();
+            }
+        } catch (...) {  // the Python function raises it again, as the named error
+        }
+    }
+    PyObject *slow = PyObject_GetAttr(module, e.slow);
+    if (!slow) return nullptr;
+    PyObject *out = PyObject_Vectorcall(slow, args, nargs, kwnames);
+    Py_DECREF(slow);
+    return out;
+}
+
+// Makes time_of_impact (see Entry) for `module`, whose function `slow` it hands
+// the other calls to, with the parameter names, the doc (which starts with the
+// text signature, for help and inspect.signature). The method definitions live
+// as long as the core (one per call: one per import of bullet_boxccd.solver).
+nb::object make_time_of_impact(nb::module_ module, nb::str slow, nb::tuple names, const std::string &doc) {
+    if (names.size() != 6) throw nb::value_error("make_time_of_impact: expected 6 parameter names");
+    Entry &e = entry();
+    const auto interned = [](nb::handle s) {
+        PyObject *o = s.inc_ref().ptr();
+        PyUnicode_InternInPlace(&o);
+        return o;
+    };
+    for (int k = 0; k < 6; ++k) e.names[k] = interned(names[k]);
+    e.data = interned(nb::str("_data"));
+    e.core = interned(nb::str("_core"));
+    e.slow = interned(slow);
+    e.box = (PyTypeObject *)nb::type<BoxData>().ptr();
+    e.motion = (PyTypeObject *)nb::type<MotionData>().ptr();
+    e.tolerances = (PyTypeObject *)nb::type<Tolerances>().ptr();
+    PyMethodDef *def = new PyMethodDef{
+        "time_of_impact", reinterpret_cast<PyCFunction>(reinterpret_cast<void (*)()>(time_of_impact_entry)),
+        METH_FASTCALL | METH_KEYWORDS, (new std::string(doc))->c_str()};
+    return checked(PyCFunction_NewEx(def, module.ptr(), nb::getattr(module, "__name__").ptr()));
+}
+
 // Validates every row (raising for the first bad one, naming all bad rows),
 // then solves with the GIL released. Output: contact t, NaN where none; with
 // `states`, also each row's Outcome as int8.
@@ -876,6 +971,12 @@ NB_MODULE(_core, m) {
     m.def("feature_name", &feature_name, nb::arg("signs"));
     m.def("set_result_types", &set_result_types, nb::arg("contact"), nb::arg("feature"), nb::arg("outcome"));
     m.def("solve", &solve);
+    m.def(
+        "set_fast_time_of_impact", [](bool on) { entry().fast = on; }, nb::arg("on"),
+        "Whether time_of_impact takes the common call straight to the core (True, the default) or runs every "
+        "call through its Python function (False: for tests that swap the core's queries for stubs).");
+    m.def("make_time_of_impact", &make_time_of_impact, nb::arg("module"), nb::arg("slow"), nb::arg("names"),
+          nb::arg("doc"));
     m.def("solve_batch", &solve_batch, nb::arg("lo_a"), nb::arg("hi_a"), nb::arg("coeffs_a"), nb::arg("lo_b"),
           nb::arg("hi_b"), nb::arg("coeffs_b"), nb::arg("t0"), nb::arg("t1"), nb::arg("tolerances"),
           nb::arg("states") = false);
