@@ -42,11 +42,14 @@ class Box:
 
     lo: np.ndarray
     hi: np.ndarray
+    # The validated copy for the core, in a slot: time_of_impact reads it there
+    # directly (no attribute lookup); the fields stay in the instance dict.
+    __slots__ = ("_data", "__dict__")
 
     def __post_init__(self):
         lo = np.array(as_float_array("lo", self.lo, (3,)))
         hi = np.array(as_float_array("hi", self.hi, (3,)))
-        object.__setattr__(self, "_data", _core.make_box(lo, hi, "Box"))  # validated copy for the core
+        object.__setattr__(self, "_data", _core.make_box(lo, hi, "Box"))
         object.__setattr__(self, "lo", _readonly(lo))
         object.__setattr__(self, "hi", _readonly(hi))
 
@@ -68,6 +71,9 @@ class Box:
     def vertices(self) -> np.ndarray:
         """(8, 3) corners in the box frame, ordered by sign triples (-,-,-), (-,-,+), ..."""
         return np.array([np.where(np.array(s) > 0, self.hi, self.lo) for s in product((-1, 1), repeat=3)])
+
+    def __reduce__(self):
+        return type(self), (self.lo, self.hi)
 
     def __repr__(self) -> str:
         return f"Box(lo={self.lo.tolist()}, hi={self.hi.tolist()})"

@@ -107,10 +107,11 @@ class QuadraticMotion:
     """
 
     coeffs: np.ndarray
+    __slots__ = ("_data", "__dict__")  # the validated copy for the core: see Box
 
     def __post_init__(self):
         c = np.array(as_float_array("coeffs", self.coeffs, (3, 4, 4)))
-        object.__setattr__(self, "_data", _core.make_motion(c, "QuadraticMotion"))  # validated copy for the core
+        object.__setattr__(self, "_data", _core.make_motion(c, "QuadraticMotion"))
         c.setflags(write=False)
         object.__setattr__(self, "coeffs", c)
 
@@ -178,6 +179,9 @@ class QuadraticMotion:
         return QuadraticMotion(
             np.stack([c0 + offset * c1 + offset**2 * c2, scale * (c1 + 2 * offset * c2), scale**2 * c2])
         )
+
+    def __reduce__(self):
+        return type(self), (self.coeffs,)
 
     def __repr__(self) -> str:
         return f"QuadraticMotion(coeffs={self.coeffs.tolist()})"

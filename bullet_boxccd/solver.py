@@ -238,7 +238,8 @@ def _time_of_impact(
 # or names what is wrong.
 time_of_impact = _core.make_time_of_impact(
     sys.modules[__name__], "_time_of_impact", tuple(inspect.signature(_time_of_impact).parameters),
-    "time_of_impact(a, m_a, b, m_b, t_range=(0.0, 1.0), tolerances=None)\n--\n\n" + inspect.getdoc(_time_of_impact))
+    "time_of_impact(a, m_a, b, m_b, t_range=(0.0, 1.0), tolerances=None)\n--\n\n" + inspect.getdoc(_time_of_impact),
+    Box, QuadraticMotion)
 
 
 def time_of_impact_batch(

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import copy
 import inspect
 import pickle
 from concurrent.futures import ThreadPoolExecutor
@@ -389,6 +390,26 @@ def test_every_call_form_gives_the_python_functions_answer():
         assert str(raised.value) == str(raised_by_python.value)
     assert str(inspect.signature(time_of_impact)) == "(a, m_a, b, m_b, t_range=(0.0, 1.0), tolerances=None)"
     assert time_of_impact.__module__ == "bullet_boxccd.solver" and "First time in" in time_of_impact.__doc__
+
+
+def test_boxes_and_motions_pickle_and_subclass():
+    """Boxes and motions travel by pickle (multiprocessing, Ray) and solve the same after;
+    a subclass (whose core data time_of_impact looks up by name, not at the slot) too."""
+    m_b = QuadraticMotion.ballistic((5.0, 0.3, 0.2), (-10.0, 0.0, 0.0))
+    want = time_of_impact(CUBE, STATIC, CUBE, m_b)
+    a, m_a, b, m_b2 = pickle.loads(pickle.dumps((CUBE, STATIC, CUBE, m_b)))
+    assert np.array_equal(a.lo, CUBE.lo) and np.array_equal(m_b2.coeffs, m_b.coeffs)
+    assert time_of_impact(a, m_a, b, m_b2).t == want.t
+
+    class Crate(Box):
+        pass
+
+    class Throw(QuadraticMotion):
+        pass
+
+    crate, throw = Crate(CUBE.lo, CUBE.hi), Throw(m_b.coeffs)
+    assert time_of_impact(crate, STATIC, crate, throw).t == want.t
+    assert type(copy.deepcopy(crate)) is Crate and type(copy.copy(throw)) is Throw
 
 
 def test_contacts_behave_like_their_named_tuples():

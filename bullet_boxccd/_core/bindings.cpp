@@ -13,6 +13,7 @@
 // times more than the solve of a simple pair.
 #define NPY_NO_DEPRECATED_API NPY_1_7_API_VERSION
 #include <numpy/arrayobject.h>
+#include <structmember.h>  // PyMemberDef: time_of_impact reads a slot at its offset
 
 #include <algorithm>
 #include <initializer_list>
@@ -231,9 +232,13 @@ nb::object solve(const BoxData &a, const MotionData &m_a, const BoxData &b, cons
 // signature, which checks the arguments, names what is wrong and solves: every
 // error is raised by that one function, with its one message.
 struct Entry {
-    PyObject *names[6];           // interned parameter names
+    PyObject *names[6];            // interned parameter names
     PyObject *data, *core, *slow;  // "_data", "_core", the Python function's name
-    PyTypeObject *box, *motion, *tolerances;
+    PyTypeObject *box, *motion, *tolerances;  // the core's types
+    // Box and QuadraticMotion keep their core data in the slot `_data`: for
+    // instances of exactly these classes it is read at its offset.
+    PyTypeObject *box_class, *motion_class;
+    Py_ssize_t box_offset, motion_offset;
     bool fast = true;  // false: every call runs the Python function (tests swap its core calls for stubs)
 };
 Entry &entry() {
@@ -241,16 +246,24 @@ Entry &entry() {
     return *e;
 }
 
-// The instance of the bound type `type` in obj's attribute `attr` (a borrowed
-// pointer, kept alive by `hold`), or nullptr if there is none.
-template <class T> const T *held(PyObject *obj, PyObject *attr, PyTypeObject *type, nb::object &hold) {
-    PyObject *d = PyObject_GetAttr(obj, attr);
-    if (!d) {
-        PyErr_Clear();
-        return nullptr;
+// The instance of the core type `type` in obj's attribute `_data` (or `_core`:
+// `attr`), a borrowed pointer kept alive by obj or by `hold`; nullptr if none.
+template <class T>
+const T *held(PyObject *obj, PyObject *attr, PyTypeObject *type, nb::object &hold, PyTypeObject *cls = nullptr,
+              Py_ssize_t offset = 0) {
+    PyObject *d;
+    if (Py_TYPE(obj) == cls) {
+        d = *reinterpret_cast<PyObject **>(reinterpret_cast<char *>(obj) + offset);
+        if (!d) return nullptr;
+    } else {
+        d = PyObject_GetAttr(obj, attr);
+        if (!d) {
+            PyErr_Clear();
+            return nullptr;
+        }
+        hold = nb::steal(d);
     }
-    hold = nb::steal(d);
-    return Py_TYPE(d) == type ? nb::inst_ptr<T>(hold) : nullptr;
+    return Py_TYPE(d) == type ? nb::inst_ptr<T>(d) : nullptr;
 }
 
 PyObject *time_of_impact_entry(PyObject *module, PyObject *const *args, Py_ssize_t nargs, PyObject *kwnames) {
@@ -271,10 +284,10 @@ PyObject *time_of_impact_entry(PyObject *module, PyObject *const *args, Py_ssize
     if (fast && arg[0] && arg[1] && arg[2] && arg[3]) {
         try {
             nb::object hold[5];
-            const BoxData *a = held<BoxData>(arg[0], e.data, e.box, hold[0]),
-                          *b = held<BoxData>(arg[2], e.data, e.box, hold[2]);
-            const MotionData *m_a = held<MotionData>(arg[1], e.data, e.motion, hold[1]),
-                             *m_b = held<MotionData>(arg[3], e.data, e.motion, hold[3]);
+            const BoxData *a = held<BoxData>(arg[0], e.data, e.box, hold[0], e.box_class, e.box_offset),
+                          *b = held<BoxData>(arg[2], e.data, e.box, hold[2], e.box_class, e.box_offset);
+            const MotionData *m_a = held<MotionData>(arg[1], e.data, e.motion, hold[1], e.motion_class, e.motion_offset),
+                             *m_b = held<MotionData>(arg[3], e.data, e.motion, hold[3], e.motion_class, e.motion_offset);
             static const Tolerances defaults{};
             const Tolerances *tol =
                 !arg[5] || arg[5] == Py_None ? &defaults : held<Tolerances>(arg[5], e.core, e.tolerances, hold[4]);
@@ -293,13 +306,28 @@ PyObject *time_of_impact_entry(PyObject *module, PyObject *const *args, Py_ssize
     return out;
 }
 
+// The offset of class `cls`'s slot `_data` (its member descriptor's).
+Py_ssize_t slot_offset(nb::handle cls) {
+    PyObject *d = PyDict_GetItemString(((PyTypeObject *)cls.ptr())->tp_dict, "_data");
+    if (!d || Py_TYPE(d) != &PyMemberDescr_Type) throw nb::type_error("make_time_of_impact: no slot _data");
+    const PyMemberDef *m = reinterpret_cast<PyMemberDescrObject *>(d)->d_member;
+    if (m->type != T_OBJECT_EX) throw nb::type_error("make_time_of_impact: _data is not an object slot");
+    return m->offset;
+}
+
 // Makes time_of_impact (see Entry) for `module`, whose function `slow` it hands
 // the other calls to, with the parameter names, the doc (which starts with the
-// text signature, for help and inspect.signature). The method definitions live
-// as long as the core (one per call: one per import of bullet_boxccd.solver).
-nb::object make_time_of_impact(nb::module_ module, nb::str slow, nb::tuple names, const std::string &doc) {
+// text signature, for help and inspect.signature), and the classes whose slot
+// `_data` holds the core's data. The method definitions live as long as the core
+// (one per call: one per import of bullet_boxccd.solver).
+nb::object make_time_of_impact(nb::module_ module, nb::str slow, nb::tuple names, const std::string &doc,
+                               nb::type_object box_class, nb::type_object motion_class) {
     if (names.size() != 6) throw nb::value_error("make_time_of_impact: expected 6 parameter names");
     Entry &e = entry();
+    e.box_offset = slot_offset(box_class);
+    e.motion_offset = slot_offset(motion_class);
+    e.box_class = (PyTypeObject *)box_class.inc_ref().ptr();
+    e.motion_class = (PyTypeObject *)motion_class.inc_ref().ptr();
     const auto interned = [](nb::handle s) {
         PyObject *o = s.inc_ref().ptr();
         PyUnicode_InternInPlace(&o);
@@ -976,7 +1004,7 @@ NB_MODULE(_core, m) {
         "Whether time_of_impact takes the common call straight to the core (True, the default) or runs every "
         "call through its Python function (False: for tests that swap the core's queries for stubs).");
     m.def("make_time_of_impact", &make_time_of_impact, nb::arg("module"), nb::arg("slow"), nb::arg("names"),
-          nb::arg("doc"));
+          nb::arg("doc"), nb::arg("box_class"), nb::arg("motion_class"));
     m.def("solve_batch", &solve_batch, nb::arg("lo_a"), nb::arg("hi_a"), nb::arg("coeffs_a"), nb::arg("lo_b"),
           nb::arg("hi_b"), nb::arg("coeffs_b"), nb::arg("t0"), nb::arg("t1"), nb::arg("tolerances"),
           nb::arg("states") = false);
