@@ -397,6 +397,7 @@ def test_boxes_and_motions_pickle_and_subclass():
     a subclass (whose core data time_of_impact looks up by name, not at the slot) too."""
     m_b = QuadraticMotion.ballistic((5.0, 0.3, 0.2), (-10.0, 0.0, 0.0))
     want = time_of_impact(CUBE, STATIC, CUBE, m_b)
+    assert abs(want.t - 0.4) < 1e-11  # faces meet at 5 - 10 t = 1
     a, m_a, b, m_b2 = pickle.loads(pickle.dumps((CUBE, STATIC, CUBE, m_b)))
     assert np.array_equal(a.lo, CUBE.lo) and np.array_equal(m_b2.coeffs, m_b.coeffs)
     assert time_of_impact(a, m_a, b, m_b2).t == want.t
