@@ -232,14 +232,21 @@ def _time_of_impact(
     return _core.solve(*_pair_args(a, m_a, b, m_b), _t_range(t_range), _core_tolerances(tolerances))
 
 
-# The public function is a builtin made by the core from the one above: the common
-# call (boxes, motions, a tuple of two floats, Tolerances) runs no Python code; any
-# other call, and any the core raises on, runs the function above, which converts
-# or names what is wrong.
-time_of_impact = _core.make_time_of_impact(
-    sys.modules[__name__], "_time_of_impact", tuple(inspect.signature(_time_of_impact).parameters),
-    "time_of_impact(a, m_a, b, m_b, t_range=(0.0, 1.0), tolerances=None)\n--\n\n" + inspect.getdoc(_time_of_impact),
-    Box, QuadraticMotion)
+def _make_time_of_impact():
+    """The public function: a builtin made by the core from the one above. The common
+    call (boxes, motions, a tuple of two floats, Tolerances or None) runs no Python
+    code; any other call, and any the core raises on, runs the function above, which
+    converts or names what is wrong. Its doc starts with the function's signature
+    without annotations (a builtin's text signature)."""
+    sig = inspect.signature(_time_of_impact)
+    plain = sig.replace(parameters=[p.replace(annotation=p.empty) for p in sig.parameters.values()],
+                        return_annotation=sig.empty)
+    doc = f"time_of_impact{plain}\n--\n\n{inspect.getdoc(_time_of_impact)}"
+    return _core.make_time_of_impact(sys.modules[__name__], "_time_of_impact", tuple(sig.parameters), doc,
+                                     Box, QuadraticMotion)
+
+
+time_of_impact = _make_time_of_impact()
 
 
 def time_of_impact_batch(

@@ -205,8 +205,9 @@ nb::object hit_result(const Hit &h) {
 }
 
 // t_range in the common form, a tuple of two floats (or float subclasses such as
-// numpy.float64); anything else is a TypeError, on which the Python wrapper runs
-// its own checks (they name what is wrong, and convert what is valid).
+// numpy.float64); anything else is a TypeError, on which time_of_impact hands the
+// call to its Python function (whose checks name what is wrong, and convert what
+// is valid).
 std::pair<double, double> float_pair(nb::handle h) {
     PyObject *o = h.ptr();
     if (PyTuple_CheckExact(o) && PyTuple_GET_SIZE(o) == 2) {
@@ -216,7 +217,7 @@ std::pair<double, double> float_pair(nb::handle h) {
     throw nb::type_error("t_range: expected a tuple of two floats");
 }
 
-// A Contact or None. t_range comes whole (see float_pair).
+// A Contact or None, for time_of_impact's Python function (t_range converted).
 nb::object solve(const BoxData &a, const MotionData &m_a, const BoxData &b, const MotionData &m_b,
                  nb::handle t_range, const Tolerances &tol) {
     const auto [t0, t1] = float_pair(t_range);
@@ -232,11 +233,11 @@ nb::object solve(const BoxData &a, const MotionData &m_a, const BoxData &b, cons
 // signature, which checks the arguments, names what is wrong and solves: every
 // error is raised by that one function, with its one message.
 struct Entry {
-    PyObject *names[6];            // interned parameter names
-    PyObject *data, *core, *slow;  // "_data", "_core", the Python function's name
+    PyObject *names[6];      // interned parameter names
+    PyObject *core, *slow;   // "_core" (Tolerances' core object), the Python function's name
     PyTypeObject *box, *motion, *tolerances;  // the core's types
-    // Box and QuadraticMotion keep their core data in the slot `_data`: for
-    // instances of exactly these classes it is read at its offset.
+    // Box and QuadraticMotion (and their subclasses) keep their core data in the
+    // slot `_data`, read at its offset.
     PyTypeObject *box_class, *motion_class;
     Py_ssize_t box_offset, motion_offset;
     bool fast = true;  // false: every call runs the Python function (tests swap its core calls for stubs)
@@ -246,24 +247,12 @@ Entry &entry() {
     return *e;
 }
 
-// The instance of the core type `type` in obj's attribute `_data` (or `_core`:
-// `attr`), a borrowed pointer kept alive by obj or by `hold`; nullptr if none.
-template <class T>
-const T *held(PyObject *obj, PyObject *attr, PyTypeObject *type, nb::object &hold, PyTypeObject *cls = nullptr,
-              Py_ssize_t offset = 0) {
-    PyObject *d;
-    if (Py_TYPE(obj) == cls) {
-        d = *reinterpret_cast<PyObject **>(reinterpret_cast<char *>(obj) + offset);
-        if (!d) return nullptr;
-    } else {
-        d = PyObject_GetAttr(obj, attr);
-        if (!d) {
-            PyErr_Clear();
-            return nullptr;
-        }
-        hold = nb::steal(d);
-    }
-    return Py_TYPE(d) == type ? nb::inst_ptr<T>(d) : nullptr;
+// The core data of type `type` in the slot at `offset` of an instance of `cls`
+// (borrowed: obj keeps it alive); nullptr if obj is not one or the slot is empty.
+template <class T> const T *slot_data(PyObject *obj, PyTypeObject *cls, Py_ssize_t offset, PyTypeObject *type) {
+    if (!PyObject_TypeCheck(obj, cls)) return nullptr;
+    PyObject *d = *reinterpret_cast<PyObject **>(reinterpret_cast<char *>(obj) + offset);
+    return d && Py_TYPE(d) == type ? nb::inst_ptr<T>(d) : nullptr;
 }
 
 PyObject *time_of_impact_entry(PyObject *module, PyObject *const *args, Py_ssize_t nargs, PyObject *kwnames) {
@@ -283,14 +272,19 @@ PyObject *time_of_impact_entry(PyObject *module, PyObject *const *args, Py_ssize
     }
     if (fast && arg[0] && arg[1] && arg[2] && arg[3]) {
         try {
-            nb::object hold[5];
-            const BoxData *a = held<BoxData>(arg[0], e.data, e.box, hold[0], e.box_class, e.box_offset),
-                          *b = held<BoxData>(arg[2], e.data, e.box, hold[2], e.box_class, e.box_offset);
-            const MotionData *m_a = held<MotionData>(arg[1], e.data, e.motion, hold[1], e.motion_class, e.motion_offset),
-                             *m_b = held<MotionData>(arg[3], e.data, e.motion, hold[3], e.motion_class, e.motion_offset);
+            const BoxData *a = slot_data<BoxData>(arg[0], e.box_class, e.box_offset, e.box),
+                          *b = slot_data<BoxData>(arg[2], e.box_class, e.box_offset, e.box);
+            const MotionData *m_a = slot_data<MotionData>(arg[1], e.motion_class, e.motion_offset, e.motion),
+                             *m_b = slot_data<MotionData>(arg[3], e.motion_class, e.motion_offset, e.motion);
             static const Tolerances defaults{};
-            const Tolerances *tol =
-                !arg[5] || arg[5] == Py_None ? &defaults : held<Tolerances>(arg[5], e.core, e.tolerances, hold[4]);
+            const Tolerances *tol = &defaults;
+            nb::object given;  // a Tolerances' core object, held for the call
+            if (arg[5] && arg[5] != Py_None) {
+                PyObject *c = PyObject_GetAttr(arg[5], e.core);
+                if (!c) PyErr_Clear();
+                given = nb::steal(c);
+                tol = c && Py_TYPE(c) == e.tolerances ? nb::inst_ptr<Tolerances>(c) : nullptr;
+            }
             if (a && m_a && b && m_b && tol) {
                 const auto [t0, t1] = arg[4] ? float_pair(arg[4]) : std::pair<double, double>(0.0, 1.0);
                 CheckedQuery q(*a, *m_a, *b, *m_b, t0, t1, *tol);
@@ -334,7 +328,6 @@ nb::object make_time_of_impact(nb::module_ module, nb::str slow, nb::tuple names
         return o;
     };
     for (int k = 0; k < 6; ++k) e.names[k] = interned(names[k]);
-    e.data = interned(nb::str("_data"));
     e.core = interned(nb::str("_core"));
     e.slow = interned(slow);
     e.box = (PyTypeObject *)nb::type<BoxData>().ptr();

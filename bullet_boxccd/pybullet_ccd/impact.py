@@ -205,7 +205,7 @@ class Impacts:
                 paths.carried_from[d] = k
                 paths.velocity[d] = (v, np.zeros(3))
             else:
-                self._place(tables, state, d, _pose7(_carry(row_k, 0.0, start)), v, np.zeros(3))
+                place(self.cid, tables, state, d, _pose7(_carry(row_k, 0.0, start)), v, np.zeros(3))
         tau_world = 1.0
         if paths is not None:
             tau_world = self._time_order(paths, sw, user_moved, events)
@@ -227,12 +227,12 @@ class Impacts:
                     state.rows, dt, np.array([f], dtype=np.int64), np.array([tau_world]))[0]
                 v, w = paths.twist(f) if in_paths else (state.rows[f, VELOCITY], state.rows[f, ANGULAR_VELOCITY])
                 # The rest of the step is simulated again and adds its gravity again.
-                self._place(tables, state, f, pose, v - gravity * (1.0 - tau_world) * dt, w)
+                place(self.cid, tables, state, f, pose, v - gravity * (1.0 - tau_world) * dt, w)
             self.stats.rewinds += len(free)
             changed = [f for f in changed if f in carried]
         for f in changed:
             v, w = paths.twist(f)
-            self._place(tables, state, f, _pose7(paths.com(f, 1.0)), v, w)
+            place(self.cid, tables, state, f, _pose7(paths.com(f, 1.0)), v, w)
             self.stats.rewinds += paths.status[f] == _STOPPED
 
     # -------------------------------------------------------- time order
@@ -538,9 +538,6 @@ class Impacts:
         move = _core.path_rows_between(e0[None], e1[None], one, one, np.eye(4)[None], np.zeros((1, 3)))[0]
         omega = move[PATH_ROW["axis"]] * move[PATH_ROW["angle"]][0] / dt
         return move[PATH_ROW["displacement"]] / dt + np.cross(omega, point - e1[:3])
-
-    def _place(self, tables, state, f, pose, v, w):
-        place(self.cid, tables, state, f, pose, v, w)
 
     def _contact(self, pair, lo, hi):
         """The first touch of a pair (path rows) in [lo, hi] (step fractions): one solve on
