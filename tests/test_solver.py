@@ -5,6 +5,7 @@ from __future__ import annotations
 import copy
 import inspect
 import pickle
+import weakref
 from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
@@ -425,6 +426,51 @@ def test_contacts_behave_like_their_named_tuples():
     back = pickle.loads(pickle.dumps(c))
     assert back.t == c.t and back.feature == c.feature and np.array_equal(back.point, c.point)
     assert c.point.flags.owndata and c.point.shape == (3,) and c.normal.dtype == np.float64
+
+
+def test_recycled_contacts_never_change_what_a_caller_holds():
+    """Contacts come from a free list: one that nobody holds any more is refilled in place,
+    with its arrays. Whatever a caller still holds (a contact, one of its arrays, a weak
+    reference) keeps its values, and an array changed in place is replaced, not refilled."""
+
+    def solve(x):  # faces meet at x - 10 t = 1; x < 1 overlaps at t = 0 (least along y)
+        start = (x, 0.3, 0.2) if x > 1.0 else (x, 0.95, 0.2)
+        return time_of_impact(CUBE, STATIC, CUBE, QuadraticMotion.ballistic(start, (-10.0, 0.0, 0.0)))
+
+    def frozen(c):
+        return c.t, tuple(c.point), tuple(c.normal), c.feature, c.initial, c.outcome
+
+    xs = [5.0, 0.5, 3.0, 0.8, 2.0] * 4  # more contacts than the free list keeps, hits and overlaps
+    held = [solve(x) for x in xs]
+    want = {x: frozen(c) for x, c in zip(xs, held)}
+    assert want[3.0][0] == pytest.approx(0.2, abs=1e-11) and want[3.0][5] is Outcome.HIT
+    assert want[0.5][:1] + want[0.5][4:] == (0.0, True, Outcome.INITIAL) and want[0.5][3] != want[3.0][3]
+    for _ in range(3):
+        for x in xs:
+            assert frozen(solve(x)) == want[x]  # refilled contacts carry the new answer, all of it
+    assert [frozen(c) for c in held] == [want[x] for x in xs]  # held contacts did not change
+
+    c = solve(5.0)
+    point, normal = c.point, c.normal
+    del c
+    for x in xs:
+        solve(x)
+    assert (tuple(point), tuple(normal)) == want[5.0][1:3]  # arrays held without their contact neither
+
+    def reshape(a):
+        a.shape = (1, 3)
+
+    def freeze(a):
+        a.flags.writeable = False
+
+    for change in (reshape, freeze, weakref.ref):
+        c = solve(5.0)
+        kept = change(c.point)
+        del c
+        for x in xs:
+            d = solve(x)
+            assert d.point.shape == (3,) and d.point.flags.writeable and frozen(d) == want[x], change
+        assert kept is None or kept() is None or tuple(kept()) == want[5.0][1]  # a weak reference: dead or unchanged
 
 
 def test_time_range_forms_agree():

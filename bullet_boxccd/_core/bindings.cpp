@@ -126,6 +126,40 @@ const Names &names() {
     return *n;
 }
 
+// A free list of Contacts, like CPython's own for floats and tuples: making a
+// Contact (a tuple and two small numpy arrays) and freeing it cost more than
+// solving a simple pair. The pool keeps the last contacts it made; one that
+// nobody else holds any more is refilled in place (a tuple held by one owner
+// only may be, as zip and enumerate do with theirs), and so are its arrays
+// unless someone still holds or changed them. Nothing a caller holds changes.
+// Off where reference counts are not exact (free-threaded Python).
+struct ContactPool {
+    static constexpr int kSize = 8;
+    PyObject *slot[kSize] = {};
+    int next = 0;  // the slot a new contact takes when none is free
+
+    // A pooled Contact of type `type` that nobody else holds (a new reference), or null.
+    PyObject *take(PyObject *type) {
+#ifndef Py_GIL_DISABLED
+        for (PyObject *c : slot)
+            if (c && Py_REFCNT(c) == 1 && (PyObject *)Py_TYPE(c) == type) return Py_NewRef(c);
+#endif
+        (void)type;
+        return nullptr;
+    }
+    void keep(nb::handle c) {
+        Py_XSETREF(slot[next], c.inc_ref().ptr());
+        next = (next + 1) % kSize;
+    }
+    void clear() {
+        for (PyObject *&c : slot) Py_CLEAR(c);
+    }
+};
+ContactPool &contact_pool() {
+    static ContactPool *p = new ContactPool;  // never freed: lives as long as the module
+    return *p;
+}
+
 // The Python result types, Contact(t, point, normal, feature, initial, outcome) and
 // Feature(kind, a, b): NamedTuples, and the members of the Outcome enum (by
 // value), registered by bullet_boxccd.solver at import.
@@ -147,6 +181,7 @@ void set_result_types(nb::handle contact, nb::handle feature, nb::handle outcome
     r.contact = nb::borrow(contact);
     r.feature = nb::borrow(feature);
     for (nb::object &f : r.features) f = nb::object();  // instances of an earlier Feature type
+    contact_pool().clear();
 }
 
 // A new reference from the C API, or the pending Python error as an exception.
@@ -167,11 +202,31 @@ nb::object new_named(const nb::object &type, std::initializer_list<nb::handle> i
     return t;
 }
 
-nb::object new_vec3(const std::array<double, 3> &v) {
+nb::object new_vec3(const Vec3 &v) {
     npy_intp n = 3;
     nb::object a = checked(PyArray_SimpleNew(1, &n, NPY_DOUBLE));
     std::copy(v.begin(), v.end(), static_cast<double *>(PyArray_DATA((PyArrayObject *)a.ptr())));
     return a;
+}
+
+// Whether `a` is a (3,) float64 array as new_vec3 makes it, held by nobody but
+// its container: its data can be overwritten unseen. A user may have changed an
+// array in place (shape, dtype, flags) or hold a weak reference to it: then not.
+bool unseen_vec3(PyObject *a) {
+    static const int fresh_flags = PyArray_FLAGS((PyArrayObject *)new_vec3({}).ptr());
+    if (Py_REFCNT(a) != 1 || Py_TYPE(a) != &PyArray_Type) return false;
+    PyArrayObject *arr = (PyArrayObject *)a;
+    return PyArray_NDIM(arr) == 1 && PyArray_DIM(arr, 0) == 3 && PyArray_STRIDE(arr, 0) == sizeof(double) &&
+           PyArray_DESCR(arr)->type_num == NPY_DOUBLE && PyArray_ISNBO(PyArray_DESCR(arr)->byteorder) &&
+           PyArray_FLAGS(arr) == fresh_flags && !PyArray_BASE(arr) &&
+           !reinterpret_cast<PyArrayObject_fields *>(arr)->weakreflist;
+}
+
+// Item i of `tuple` (held by nobody else) replaced by `x`.
+void set_item(PyObject *tuple, Py_ssize_t i, nb::handle x) {
+    PyObject *old = PyTuple_GET_ITEM(tuple, i);
+    PyTuple_SET_ITEM(tuple, i, x.inc_ref().ptr());
+    Py_XDECREF(old);
 }
 
 // The Feature(kind, a, b) of a facet and its features, made once per combination
@@ -198,10 +253,28 @@ nb::object hit_result(const Hit &h) {
     const nb::object feature = facet ? feature_of(h.facet, h.feat_a, h.feat_b) : nb::none();
     constexpr double nan = std::numeric_limits<double>::quiet_NaN();
     const boxccd::Vec3 none{nan, nan, nan};
-    const nb::object t = checked(PyFloat_FromDouble(h.t)), point = new_vec3(facet ? h.point : none),
-                     normal = new_vec3(facet ? h.normal : none);
-    return new_named(types.contact, {t, point, normal, feature, h.initial() ? Py_True : Py_False,
-                                     types.outcome[static_cast<int>(h.outcome)]});
+    const Vec3 &point = facet ? h.point : none, &normal = facet ? h.normal : none;
+    const nb::object t = checked(PyFloat_FromDouble(h.t));
+    PyObject *initial = h.initial() ? Py_True : Py_False;
+    const nb::object &outcome = types.outcome[static_cast<int>(h.outcome)];
+    ContactPool &pool = contact_pool();
+    nb::object c = nb::steal(pool.take(types.contact.ptr()));
+    if (!c.is_valid()) {
+        c = new_named(types.contact, {t, new_vec3(point), new_vec3(normal), feature, initial, outcome});
+        pool.keep(c);
+        return c;
+    }
+    const Vec3 *v[3] = {nullptr, &point, &normal};
+    for (Py_ssize_t i : {1, 2}) {
+        PyObject *a = PyTuple_GET_ITEM(c.ptr(), i);
+        if (unseen_vec3(a)) std::copy(v[i]->begin(), v[i]->end(), static_cast<double *>(PyArray_DATA((PyArrayObject *)a)));
+        else set_item(c.ptr(), i, new_vec3(*v[i]));
+    }
+    set_item(c.ptr(), 0, t);
+    set_item(c.ptr(), 3, feature);
+    set_item(c.ptr(), 4, initial);
+    set_item(c.ptr(), 5, outcome);
+    return c;
 }
 
 // t_range in the common form, a tuple of two floats (or float subclasses such as
