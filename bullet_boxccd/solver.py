@@ -152,6 +152,10 @@ class Feature(NamedTuple):
 class Contact(NamedTuple):
     """First contact of two boxes.
 
+    The core keeps a free list of contacts: one that nobody holds any more (with its
+    arrays, unless someone holds or changed them) is refilled by a later call. A
+    contact or array you hold never changes.
+
     Attributes
     ----------
     t : float
