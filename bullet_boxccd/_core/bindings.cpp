@@ -140,11 +140,12 @@ struct ContactPool {
 
     // A pooled Contact of type `type` that nobody else holds (a new reference), or null.
     PyObject *take(PyObject *type) {
-#ifndef Py_GIL_DISABLED
+#ifdef Py_GIL_DISABLED
+        (void)type;  // reference counts are not exact: no refills
+#else
         for (PyObject *c : slot)
             if (c && Py_REFCNT(c) == 1 && (PyObject *)Py_TYPE(c) == type) return Py_NewRef(c);
 #endif
-        (void)type;
         return nullptr;
     }
     void keep(nb::handle c) {
@@ -264,12 +265,13 @@ nb::object hit_result(const Hit &h) {
         pool.keep(c);
         return c;
     }
-    const Vec3 *v[3] = {nullptr, &point, &normal};
-    for (Py_ssize_t i : {1, 2}) {
+    const auto refill = [&c](Py_ssize_t i, const Vec3 &v) {  // the array in item i, or a new one
         PyObject *a = PyTuple_GET_ITEM(c.ptr(), i);
-        if (unseen_vec3(a)) std::copy(v[i]->begin(), v[i]->end(), static_cast<double *>(PyArray_DATA((PyArrayObject *)a)));
-        else set_item(c.ptr(), i, new_vec3(*v[i]));
-    }
+        if (unseen_vec3(a)) std::copy(v.begin(), v.end(), static_cast<double *>(PyArray_DATA((PyArrayObject *)a)));
+        else set_item(c.ptr(), i, new_vec3(v));
+    };
+    refill(1, point);
+    refill(2, normal);
     set_item(c.ptr(), 0, t);
     set_item(c.ptr(), 3, feature);
     set_item(c.ptr(), 4, initial);
