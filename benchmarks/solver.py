@@ -9,9 +9,10 @@ and class (the pairs our solver reports hitting, and those that stay apart):
 
 * time per pair of ``time_of_impact`` (a Python loop of single calls over the
   class's pairs that drops each result; and one that keeps every Contact, so
-  that the free list of contacts has none to refill), of ``time_of_impact_batch`` (one call on all of them, one
-  core), of the batch split over 2 Python threads (it scales only because the
-  core releases the GIL), and of python-fcl's conservative advancement
+  that the free list of contacts has none to refill), of
+  ``time_of_impact_batch`` (one call on all of them, one core), of the batch
+  split over 2 Python threads (it scales only because the core releases the
+  GIL), and of python-fcl's conservative advancement
   (``continuousCollide``, GJK libccd, toc_err 1e-6) between the same rigid start
   and end poses with ``CCDM_TRANS`` (translation only: it ignores the spin, its
   fastest) and ``CCDM_SCREW`` (a screw between the two poses), a Python loop like
@@ -19,7 +20,7 @@ and class (the pairs our solver reports hitting, and those that stay apart):
   an order rotated from round to round (interleaved, so that the drifts of a
   shared machine hit all alike); reported: the minimum over the rounds (the
   least disturbed pass) and the median;
-* the ratio FCL trans / ours, single and batch, from the minima (and the
+* the ratio FCL trans / ours, single (both loops) and batch, from the minima (and the
   medians) of this run;
 * misses, false hits and late answers of ours, and misses and false hits of FCL,
   against a dense separating-axis reference on the quadratic motion our solver
