@@ -138,13 +138,12 @@ struct ContactPool {
     PyObject *slot[kSize] = {};
     int next = 0;  // the slot a new contact takes when none is free
 
-    // A pooled Contact of type `type` that nobody else holds (a new reference), or null.
-    PyObject *take(PyObject *type) {
-#ifdef Py_GIL_DISABLED
-        (void)type;  // reference counts are not exact: no refills
-#else
+    // A pooled Contact that nobody else holds (a new reference), or null. Every
+    // pooled contact is of the registered type: set_result_types empties the pool.
+    PyObject *take() {
+#ifndef Py_GIL_DISABLED  // there reference counts are not exact: no refills
         for (PyObject *c : slot)
-            if (c && Py_REFCNT(c) == 1 && (PyObject *)Py_TYPE(c) == type) return Py_NewRef(c);
+            if (c && Py_REFCNT(c) == 1) return Py_NewRef(c);
 #endif
         return nullptr;
     }
@@ -259,7 +258,7 @@ nb::object hit_result(const Hit &h) {
     PyObject *initial = h.initial() ? Py_True : Py_False;
     const nb::object &outcome = types.outcome[static_cast<int>(h.outcome)];
     ContactPool &pool = contact_pool();
-    nb::object c = nb::steal(pool.take(types.contact.ptr()));
+    nb::object c = nb::steal(pool.take());
     if (!c.is_valid()) {
         c = new_named(types.contact, {t, new_vec3(point), new_vec3(normal), feature, initial, outcome});
         pool.keep(c);
