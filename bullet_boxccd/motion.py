@@ -203,3 +203,40 @@ def quat_to_matrix(q) -> np.ndarray:
     R[..., 2, 1] = y * z + x * w
     R[..., 2, 2] = 1 - (x * x + y * y)
     return R
+
+
+def matrix_to_quat(R) -> np.ndarray:
+    """(4,) unit quaternion (x, y, z, w) of a (3, 3) rotation matrix."""
+    R = np.asarray(R, dtype=float)
+    t = np.trace(R)
+    if t > 0:
+        s = 2.0 * np.sqrt(t + 1.0)
+        q = [(R[2, 1] - R[1, 2]) / s, (R[0, 2] - R[2, 0]) / s, (R[1, 0] - R[0, 1]) / s, 0.25 * s]
+    else:  # the largest diagonal term gives the best-conditioned component
+        i = int(np.argmax(np.diag(R)))
+        j, k = (i + 1) % 3, (i + 2) % 3
+        s = 2.0 * np.sqrt(1.0 + R[i, i] - R[j, j] - R[k, k])
+        q = [0.0] * 4
+        q[i], q[j], q[k], q[3] = 0.25 * s, (R[j, i] + R[i, j]) / s, (R[k, i] + R[i, k]) / s, (R[k, j] - R[j, k]) / s
+    q = np.array(q)
+    return q / np.linalg.norm(q)
+
+
+def pose_matrix(position, quaternion) -> np.ndarray:
+    """(4, 4) rigid pose of a position and a quaternion (x, y, z, w)."""
+    X = np.eye(4)
+    X[:3, :3] = quat_to_matrix(quaternion)
+    X[:3, 3] = position
+    return X
+
+
+def pose7(X) -> np.ndarray:
+    """(7,) position and quaternion (x, y, z, w) of a (4, 4) rigid pose."""
+    return np.concatenate([np.asarray(X)[:3, 3], matrix_to_quat(np.asarray(X)[:3, :3])])
+
+
+def axis_angle_matrix(axis, angle) -> np.ndarray:
+    """(3, 3) rotation by ``angle`` about the unit ``axis`` (Rodrigues)."""
+    x, y, z = np.asarray(axis, dtype=float)
+    K = np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
+    return np.eye(3) + np.sin(angle) * K + (1.0 - np.cos(angle)) * (K @ K)

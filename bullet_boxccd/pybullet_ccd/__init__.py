@@ -15,9 +15,13 @@ imports pybullet).
    ``_core/step_path.hpp``), their partners from pybullet's own broad phase on the
    swept bounds, the filters (``filters``: pybullet's own, mirrored), and each pair's
    first touch on conservatively fitted quadratic motions (the BMS solver).
-5. ``impact``: rewind the free bodies that touched to their first touch on Bullet's
-   own path, push what a kinematic body swept into ahead of it; pybullet's contact
-   solver handles the impact in the next step.
+5. ``contacts``: the contacts in one time-ordered pass (``articulated`` finds those
+   of link boxes on their chain paths). Where a pair met inside the step and pybullet
+   would resolve it from where the step left it wrongly (deep in, or past), the world is
+   taken back to the contact's time on Bullet's own paths and the rest of the step is
+   simulated again (a partial step), up to ``max_partial_steps`` times a step: pybullet's
+   contact solver then sees the contact as it begins, as at a fine step, and the impact
+   is the engine's.
 6. ``events``: the step's contacts and the running counters.
 
 Why sweep after the step rather than predict before it: the path depends on the
@@ -40,7 +44,7 @@ from ..solver import DEFAULT_TOLERANCES, InvalidInputError, Tolerances
 from ._hooks import last_serial, raw, replay_impulses
 from .articulated import Articulated
 from .events import BoxCCDWarning, CCDEvent, CCDStats
-from .impact import Impacts
+from .contacts import Contacts
 from .state import FrameState
 from .sweep import jump_sweep, sweep
 from .world import STATIC, World, pose_matrix, warn_once
@@ -65,28 +69,33 @@ class BoxCCD:
         smallest half extent, in (0, 1]; a step is split into 2, 4, ... pieces until it
         holds, and the box is inflated by what remains. Default 0.05.
     penetration : float
-        Depth (m) of the rewound overlap of the sharp boxes, in (0, 1e-3]. Default 2e-7.
+        Depth (m) of the overlap of the sharp boxes at the time the world is taken back
+        to, in (0, 1e-3]. Bullet's box-box detector makes a contact from the touch on,
+        but at a smaller overlap than about 1e-6 m it may see one corner of a leading
+        edge or face and not the others. Default 1e-5.
+    depth_tolerance : float
+        A pair that meets inside a step and ends it overlapping by less than this (m),
+        on the side it came from, is left to pybullet's next step; deeper, the world is
+        taken back to the contact. At least 0. Default 1e-3.
     self_collision_bodies : iterable of int
         Bodies whose links collide with each other.
-    exact_time : bool
-        Instead of rewinding only the bodies that touched, stop every free body at the
-        step's earliest contact and simulate the rest of the step from there (up to
-        ``max_partial_steps`` times a step). Articulated bodies are stopped there too
-        (at their own contacts too, which do not stop the world); kinematic bodies are not.
     max_partial_steps : int
+        Partial steps a step may take (each one from a contact on to the step's end).
+        When they are used up, the bodies of each remaining contact go back to it on
+        their own and keep their velocities (pybullet resolves it at the next step).
         At least 0. Default 8.
     tolerances : Tolerances
         Solver tolerances.
     """
 
     def __init__(self, physics_client_id: int = 0, *, sweep_threshold: float = 0.25, fit_tolerance: float = 0.05,
-                 penetration: float = 2e-7, self_collision_bodies=(), exact_time: bool = False,
+                 penetration: float = 1e-5, depth_tolerance: float = 1e-3, self_collision_bodies=(),
                  max_partial_steps: int = 8, tolerances: Tolerances = DEFAULT_TOLERANCES):
         self.cid = _client(physics_client_id)
         self.sweep_threshold = _number("sweep_threshold", sweep_threshold, 0.0, math.inf)
         self.fit_tolerance = _number("fit_tolerance", fit_tolerance, 0.0, 1.0, open_low=True)
         self.penetration = _number("penetration", penetration, 0.0, 1e-3, open_low=True)
-        self.exact_time = _flag("exact_time", exact_time)
+        self.depth_tolerance = _number("depth_tolerance", depth_tolerance, 0.0, math.inf)
         self.max_partial_steps = _count("max_partial_steps", max_partial_steps)
         if not isinstance(tolerances, Tolerances):
             raise InvalidInputError(f"tolerances: expected a Tolerances, got {type(tolerances).__name__}")
@@ -99,8 +108,8 @@ class BoxCCD:
                                              "than that many extents a step is not swept, and can skip a wall")
         bodies = _bodies(self.cid, self_collision_bodies, "self_collision_bodies")
         self.world = World(self.cid, bodies, self._warn)
-        self.impacts = Impacts(self.cid, self.penetration, self.fit_tolerance, self.tolerances, self.exact_time,
-                               self.stats)
+        self.contacts = Contacts(self.cid, self.penetration, self.depth_tolerance, self.fit_tolerance,
+                                 self.tolerances, self.stats)
         self._params_seen = -1
         self._moves_seen = self.world.journal.last_move  # moves made while building the world are not sweeps
         self._quiet, self._epoch = False, -1  # whether a step may skip every check (see step)
@@ -156,7 +165,8 @@ class BoxCCD:
 
     # ------------------------------------------------------------- stepping
     def step(self) -> list:
-        """``p.stepSimulation()`` followed by the sweep and rewind; returns this step's contacts."""
+        """``p.stepSimulation()``, swept, with partial steps from the contacts pybullet would
+        resolve wrongly; returns this step's contacts."""
         cid = self.cid
         if self._quiet and last_serial() == self._epoch and raw.getNumBodies(physicsClientId=cid) == self.world.count:
             # Nothing changed in the world since the last step: step, read the velocities
@@ -167,40 +177,13 @@ class BoxCCD:
             self.stats.steps += 1
             if fast is None and not self._chains.bodies:
                 return []
-            events = self._quiet_sweep(fast, time.perf_counter())
+            events = self._step(self._dt, 0.0, self._dt, stepped=True, fast=fast)
         else:
             events = self._full_step()
             self.stats.steps += 1
-        self._quiet = self._substeps == 1 and not self._state.with_velocity and not self.impacts.watch
+        self._quiet = self._substeps == 1 and not self._state.with_velocity
         self._epoch = last_serial()
         return events
-
-    def _quiet_sweep(self, fast, t0):
-        """The sweep of a step taken in a world where nothing changed (no user move, no
-        kinematic velocity, one substep): what ``_step`` does then, without its checks."""
-        if self.exact_time:
-            return self._step(self._dt, 0.0, self._dt, stepped=True, fast=fast)
-        st, t, dt = self._state, self.world.tables, self._dt
-        st.begin_kinematic((), ())
-        self._chains.read(dt, st)
-        sw = None if fast is None else sweep(self.cid, t, st, dt, self.fit_tolerance, self.tolerances,
-                                             self.penetration, self.stats, t0, fast)
-        events, _, pushed = self._chains_sweep(dt)
-        sw = _without(sw, pushed, t)
-        if sw is not None:
-            t3 = time.perf_counter()
-            events += self.impacts.resolve(sw, None, t, st, dt, set(), self._gravity)[0]
-            self.stats.seconds["rewind"] += time.perf_counter() - t3
-        return events
-
-    def _chains_sweep(self, h):
-        if not self._chains.bodies:
-            return [], {}, set()
-        t0 = time.perf_counter()
-        out = self._chains.sweep(h, self._state, self._sweep_reach, self.fit_tolerance, self.tolerances,
-                                 self.penetration, self.stats)
-        self.stats.seconds["solve"] += time.perf_counter() - t0
-        return out
 
     def _full_step(self):
         self._sync()
@@ -216,9 +199,6 @@ class BoxCCD:
                         replay_impulses(self.cid, impulses)
                     events += self._step(dt / n, k * dt / n, dt)
         impulses.clear()
-        if self.impacts.watch:
-            self._state.read_velocities()
-            self.impacts.guard(self.world.tables, self._state)
         return events
 
     @contextmanager
@@ -231,31 +211,31 @@ class BoxCCD:
             raw.setPhysicsEngineParameter(fixedTimeStep=dt, numSubSteps=n, physicsClientId=self.cid)
 
     def _step(self, h, offset, dt, stepped=False, fast=None):
-        """One stepSimulation of h seconds (``offset`` into the user's step of dt), swept;
-        in exact-time mode, again from the earliest contact until the step is done.
+        """One stepSimulation of h seconds (``offset`` into the user's step of dt), swept,
+        then again from each contact the world is taken back to, until the step is done.
         ``stepped``: pybullet took the step already, the velocities are read, and ``fast``
         are the fast boxes (``Sweeper.fast``; None: none)."""
         moved_static, with_velocity, user_moved = self._user_moves()
         t_start, elapsed, events = time.perf_counter(), 0.0, []
         try:
-            for _ in range(1 + (self.max_partial_steps if self.exact_time else 0)):
+            for k in range(1 + self.max_partial_steps):
                 self._state.begin_kinematic(moved_static, with_velocity)
                 if not stepped:
                     raw.stepSimulation(physicsClientId=self.cid)
                 t_sim = time.perf_counter()
                 self.stats.seconds["step"] += t_sim - t_start
-                found, tau = self._sweep(h - elapsed, t_sim, user_moved, stepped, fast)
+                back = k < self.max_partial_steps
+                found, tau = self._sweep(h - elapsed, t_sim, user_moved, back, stepped, fast)
                 stepped, fast = False, None
-                if found:
-                    events += [_shifted(e, offset + elapsed, dt) for e in found]
-                if not self.exact_time or tau >= 1.0:
+                events += [_shifted(e, offset + elapsed, dt) for e in found]
+                if tau >= 1.0:
                     break
-                # Exact-time mode: the world stopped at tau of this (partial) step;
-                # simulate the rest of the step from there.
+                # The world stands at tau of this (partial) step: simulate the rest from there.
                 elapsed += tau * (h - elapsed)
                 moved_static, user_moved = [], set()
                 if h - elapsed <= 1e-9 * h:
                     break
+                self.stats.partial_steps += 1
                 raw.setPhysicsEngineParameter(fixedTimeStep=h - elapsed, physicsClientId=self.cid)
                 t_start = time.perf_counter()
         finally:
@@ -263,7 +243,11 @@ class BoxCCD:
                 raw.setPhysicsEngineParameter(fixedTimeStep=h, physicsClientId=self.cid)
         return events
 
-    def _sweep(self, h, t0, user_moved, stepped=False, fast=None):
+    def _sweep(self, h, t0, user_moved, back, stepped=False, fast=None):
+        """Sweep the (partial) step of h seconds just taken and resolve its contacts: with
+        ``back``, the world goes back to the earliest contact pybullet would resolve
+        wrongly (returns (events, its time)); without, each such contact's bodies go back
+        on their own (returns (events, 1))."""
         t = self.world.tables
         if not len(t.half):
             return [], 1.0
@@ -275,18 +259,40 @@ class BoxCCD:
         sw = None if stepped and fast is None else sweep(self.cid, t, st, h, self.fit_tolerance, self.tolerances,
                                                           self.penetration, self.stats, t0, fast)
         jw = jump_sweep(self.cid, t, st, h, self.fit_tolerance, self.tolerances, self.penetration, self.stats)
-        # Articulated bodies first, on Bullet's paths of everything (their stops change no
-        # free body's path); then the free bodies' contacts.
-        events, stopped, pushed = self._chains_sweep(h)
-        sw = _without(sw, pushed, t)
-        if sw is None and jw is None:
-            return events, 1.0  # an articulated body's stop does not stop the world
+        found = self._chains_find(h)
+        if sw is None and jw is None and not found:
+            return [], 1.0
         t3 = time.perf_counter()
-        found, tau = self.impacts.resolve(sw, jw, t, st, h, user_moved, self._gravity)
-        if self.exact_time and tau < 1.0:
-            self._chains.stop_all(tau, stopped, st)
+        if back:
+            # One time order: the free bodies' contacts up to the earliest articulated one
+            # that needs the world back; the world then goes back to the earlier of the two.
+            tau_links = self._chains.act_at(found)
+            events, tau = self.contacts.resolve(sw, jw, t, st, h, user_moved, self._gravity, True, tau_links)
+            if tau < 1.0:
+                self._chains.stop_all(tau, st, self._gravity * (1.0 - tau) * h)
+                self.stats.rewinds += 1
+            events = self._chains.events(found, tau, tau if tau < 1.0 else None) + events
+        else:
+            # Articulated bodies first, on Bullet's paths of everything (their stops change
+            # no free body's path); then the free bodies' contacts, less those of free boxes
+            # a link pushed (their paths are no longer Bullet's).
+            events = self._chains.events(found)
+            _, pushed = self._chains.stop_each(found, st, h, self.stats)
+            more, tau = self.contacts.resolve(_without(sw, pushed, t), jw, t, st, h, user_moved, self._gravity,
+                                              False)
+            events += more
         self.stats.seconds["rewind"] += time.perf_counter() - t3
-        return events + found, tau
+        self.stats.contacts += len(events)
+        return sorted(events, key=lambda e: e.tau), tau
+
+    def _chains_find(self, h):
+        if not self._chains.bodies:
+            return []
+        t0 = time.perf_counter()
+        found = self._chains.find(h, self._state, self._sweep_reach, self.fit_tolerance, self.tolerances,
+                                  self.penetration, self.depth_tolerance, self.stats)
+        self.stats.seconds["solve"] += time.perf_counter() - t0
+        return found
 
     # --------------------------------------------------------- declarations
     def register_box(self, body: int, link: int, half_extents, position=(0.0, 0.0, 0.0),

@@ -33,11 +33,12 @@ import numpy as np
 import pybullet
 
 from .. import _core
+from ..motion import pose7, pose_matrix
 from ..solver import Outcome
 from ._hooks import raw
 from .chain import read_chain
 from .events import CCDEvent
-from .impact import _pose4, _pose7, bounce, place
+from .contacts import bounce, place
 from .layout import ANGULAR_VELOCITY, POSE, TWIST, VELOCITY
 from .sweep import CREEP, overlap_query
 from .world import FREE, LINK
@@ -61,6 +62,7 @@ class _Body:
     moving_joints: list = None  # its joints that are not fixed, and where each one's
     q_spans: list = None  # coordinates and velocities lie in the flat q and qdot
     qdot_spans: list = None
+    free_base: bool = True  # a base of mass > 0 (Bullet moves a fixed one only by a velocity given to it)
 
 
 class Articulated:
@@ -84,6 +86,7 @@ class Articulated:
             self.bodies[b] = _Body(b, chain, frames, links, [(f, i) for f in frames for i in tables.frame_boxes[f]],
                                    _excluded(chain.parent, bits) if bits is not None else None)
         for rec in self.bodies.values():
+            rec.free_base = raw.getDynamicsInfo(rec.body, -1, physicsClientId=cid)[0] > 0.0
             rec.link_of_frame = np.array([rec.links[f] for f in rec.frames], dtype=np.int64)
             ch = rec.chain
             rec.moving_joints = [j for j in range(ch.n_links) if ch.joint_type[j] != pybullet.JOINT_FIXED]
@@ -100,7 +103,7 @@ class Articulated:
     def read(self, dt, state):
         """Read every articulated body after the step, and put its frames' poses after the
         step and their chords (as velocities) in ``state.rows``."""
-        cid = self.cid
+        cid, self._dt = self.cid, dt
         for rec in self.bodies.values():
             pos, orn = raw.getBasePositionAndOrientation(rec.body, physicsClientId=cid)
             v, w = raw.getBaseVelocity(rec.body, physicsClientId=cid)
@@ -133,10 +136,10 @@ class Articulated:
         return path
 
     # ------------------------------------------------------------ sweeping
-    def sweep(self, dt, state, sweep_reach, fit_tolerance, tolerances, penetration, stats):
-        """Sweep the fast link boxes; stop the bodies whose pairs pybullet would resolve
-        wrongly, or push the free box a link presses into. Returns (events, {body: tau it
-        was stopped at}, {free frames pushed})."""
+    def find(self, dt, state, sweep_reach, fit_tolerance, tolerances, penetration, depth_tolerance, stats):
+        """Sweep the fast link boxes. Returns their contacts in time order: [(touch, act at
+        (None: pybullet's to resolve), (point, normal, feature), initial, pressing, body
+        record, frame, partner frame, (path, partner path))]."""
         t = self.tables
         fast = []
         for rec in self.bodies.values():
@@ -145,11 +148,11 @@ class Articulated:
                 if 2.0 * path.travel(0.0, 1.0) > sweep_reach[i]:
                     fast.append((rec, f, i, path))
         if not fast:
-            return [], {}, set()
+            return []
         stats.swept_boxes += len(fast)
         slack = self._slack(state, dt)
         linked = self._linked_bounds(fast, dt)
-        found = []  # ((touch, act at, contact, initial), rec, frame, partner frame)
+        found = []
         cache, seen = {}, set()
         for rec, f, i, path in fast:
             box = path.bounds(4).tolist()
@@ -164,20 +167,40 @@ class Articulated:
                 other = self._partner(j, g, state, dt, cache)
                 if j not in linked and not _meet(box, other.bounds(1).tolist()):
                     continue  # their swept bounds do not meet
-                hit = self._judge(path, other, fit_tolerance, tolerances, penetration, stats)
+                hit = self._judge(path, other, fit_tolerance, tolerances, penetration, depth_tolerance, stats)
                 if hit is not None:
-                    found.append((hit, rec, f, g, (path, other)))
-        stops, pushes, events = {}, [], []
-        for (touch, act, c, initial, pressing), rec, f, g, pair in sorted(found, key=lambda x: x[0][0]):
+                    found.append((*hit, rec, f, g, (path, other)))
+        found.sort(key=lambda x: x[0])
+        return found
+
+    def events(self, found, upto=1.0, acted_at=None):
+        """The CCDEvents of ``find``'s contacts that touched by ``upto``; ``acted_at``: the
+        time the world was taken back to (a contact acting then is marked rewound)."""
+        t, dt = self.tables, self._dt
+        return [CCDEvent(*t.keys[f], *t.keys[g], touch, touch * dt, c[0], c[1], c[2],
+                         act is not None and (acted_at is None or act == acted_at), initial)
+                for touch, act, c, initial, _, _, f, g, _ in found if touch <= upto]
+
+    def act_at(self, found) -> float:
+        """The earliest time one of ``find``'s contacts needs the world back at (1 if none)."""
+        return min((x[1] for x in found if x[1] is not None), default=1.0)
+
+    def stop_each(self, found, state, dt, stats):
+        """No partial step left: stop each body whose pair needs it at its own time, or push
+        the free box a link presses into. Returns ({body: tau it was stopped at}, {free
+        frames pushed})."""
+        t = self.tables
+        stops, pushes = {}, []
+        for touch, act, c, initial, pressing, rec, f, g, pair in found:
+            if act is None:
+                continue
             partner = self.bodies.get(int(t.body[g]))
-            if act is not None and pressing and t.kind[g] == FREE and partner is None:
+            if pressing and t.kind[g] == FREE and partner is None:
                 pushes.append((act, rec, f, g, pair))
-            elif act is not None:
-                stops[rec.body] = min(stops.get(rec.body, act), act)
-                if partner is not None and partner is not rec:
-                    stops[partner.body] = min(stops.get(partner.body, act), act)
-            events.append(CCDEvent(*t.keys[f], *t.keys[g], touch, touch * dt, c[0], c[1], c[2], act is not None,
-                                   initial))
+                continue
+            stops[rec.body] = min(stops.get(rec.body, act), act)
+            if partner is not None and partner is not rec:
+                stops[partner.body] = min(stops.get(partner.body, act), act)
         for b, tau in stops.items():
             self.stop(self.bodies[b], tau, state)
         stats.rewinds += len(stops)
@@ -187,7 +210,7 @@ class Articulated:
                 self._push(rec, f, g, tau, pair, state, dt)
                 pushed.add(g)
         stats.pushes += len(pushed)
-        return events, stops, pushed
+        return stops, pushed
 
     def _slack(self, state, dt):
         """The farthest a box of a frame not of an articulated body moves in the step
@@ -237,7 +260,7 @@ class Articulated:
             cache[("row", j)] = _core.RowBoxPath(row)
         return cache[("row", j)]
 
-    def _judge(self, a, b, fit_tolerance, tolerances, penetration, stats):
+    def _judge(self, a, b, fit_tolerance, tolerances, penetration, depth_tolerance, stats):
         """(touch, act at or None, (point, normal, feature), initial, pressing: touching or
         all but when the step began) of a pair of paths, or None if they stay apart."""
         touch, solves, c = _core.paths_contact(a, b, fit_tolerance, tolerances._core)
@@ -250,10 +273,13 @@ class Articulated:
         initial = d0 >= 0.0
         thin = min(a.half_extents.min(), b.half_extents.min())
         # A pair touching, or all but, when the step began was in pybullet's contact solve
-        # (its contacts reach a little beyond the touch): acted on only if it pressed in
-        # deeper than a creep.
+        # (its contacts reach a little beyond the touch): acted on only if it presses in by
+        # more than a creep (up to depth_tolerance) or ends where pybullet resolves it
+        # wrongly; a pair that met inside the step, also when it ends deeper than
+        # depth_tolerance.
         creep = CREEP * thin
-        target = max(d0, 0.0) + max(penetration, creep) if d0 > -creep else penetration
+        pressing = d0 > -creep
+        target = max(d0, 0.0) + max(penetration, min(creep, depth_tolerance)) if pressing else penetration
         act = float(_core.paths_first_depth(a, b, touch, target))
         if c.feature is not None:
             contact = (c.point, c.normal, c.feature)
@@ -261,9 +287,10 @@ class Articulated:
             _, n = _core.paths_separation(a, b, touch)
             Xa, Xb = a.pose(touch), b.pose(touch)
             contact = (0.5 * (Xa[:3, 3] + Xb[:3, 3]), n, None)
-        if math.isnan(act) or not _goes_wrong(a, b, act):
+        deep = float(_core.paths_depth(a, b, 1.0)) > (target if pressing else depth_tolerance)
+        if math.isnan(act) or not (deep or _goes_wrong(a, b, act)):
             act = None
-        return touch, act, contact, initial, d0 > -creep
+        return touch, act, contact, initial, pressing
 
     # ------------------------------------------------------------ pushing
     def _push(self, rec, f, g, tau, pair, state, dt):
@@ -273,25 +300,27 @@ class Articulated:
         restitution; spin left as it is)."""
         link = rec.links[f]
         frame = (lambda s: rec.motion.base_pose(s)) if link == -1 else (lambda s: rec.motion.link_pose(link, s))
-        F_t, F_1 = _pose4(frame(tau)), _pose4(frame(1.0))
-        X = _pose4(_core.frame_poses(state.rows, dt, np.array([g], dtype=np.int64), np.array([tau]))[0])
+        F_t, F_1 = (pose_matrix(p[:3], p[3:]) for p in (frame(tau), frame(1.0)))
+        p = _core.frame_poses(state.rows, dt, np.array([g], dtype=np.int64), np.array([tau]))[0]
+        X = pose_matrix(p[:3], p[3:])
         turn = F_1 @ np.linalg.inv(F_t)
         X1 = turn @ X
         _, n = _core.paths_separation(pair[0], pair[1], tau)
         n = turn[:3, :3] @ n
         v_link = state.rows[f, VELOCITY] + np.cross(state.rows[f, ANGULAR_VELOCITY], X1[:3, 3] - F_1[:3, 3])
         v = bounce(self.cid, self.tables, g, f, state.rows[g, VELOCITY], v_link, n)
-        place(self.cid, self.tables, state, g, _pose7(X1), v, state.rows[g, ANGULAR_VELOCITY].copy())
+        place(self.cid, self.tables, state, g, pose7(X1), v, state.rows[g, ANGULAR_VELOCITY].copy())
 
     # ------------------------------------------------------------ stopping
-    def stop(self, rec, tau, state):
+    def stop(self, rec, tau, state, dv=None):
         """Put the body where its path has it at tau (base pose, joint positions), with the
-        velocities it had after the step; its frames stand still from there."""
+        velocities it had after the step (the base's less ``dv``: the gravity of the rest of
+        the step, when it is simulated again); its frames stand still from there."""
         cid, m = self.cid, rec.motion
         base = m.base_pose(tau)
+        v = rec.base_state[7:10] if dv is None or not rec.free_base else rec.base_state[7:10] - dv
         raw.resetBasePositionAndOrientation(rec.body, base[:3].tolist(), base[3:].tolist(), physicsClientId=cid)
-        raw.resetBaseVelocity(rec.body, rec.base_state[7:10].tolist(), rec.base_state[10:13].tolist(),
-                              physicsClientId=cid)
+        raw.resetBaseVelocity(rec.body, v.tolist(), rec.base_state[10:13].tolist(), physicsClientId=cid)
         if rec.moving_joints:
             q, qdot = m.joint_positions(tau).tolist(), rec.qdot.tolist()
             raw.resetJointStatesMultiDof(rec.body, rec.moving_joints, [q[a:b] for a, b in rec.q_spans],
@@ -303,11 +332,11 @@ class Articulated:
             state.rows[f, TWIST] = 0.0
         rec.motion = None  # its paths are no longer this step's
 
-    def stop_all(self, tau, stopped, state):
-        """Exact-time mode: every articulated body not stopped earlier, at tau."""
-        for b, rec in self.bodies.items():
-            if rec.motion is not None and stopped.get(b, 1.0) > tau:
-                self.stop(rec, tau, state)
+    def stop_all(self, tau, state, dv):
+        """The world taken back to tau: every articulated body where its path has it then."""
+        for rec in self.bodies.values():
+            if rec.motion is not None:
+                self.stop(rec, tau, state, dv)
 
 
 def _goes_wrong(a, b, s_act):

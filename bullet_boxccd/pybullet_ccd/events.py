@@ -25,9 +25,10 @@ class CCDEvent:
     the same in seconds after the step started; ``point`` and ``normal`` (unit,
     from box A towards box B) are world coordinates at the first touch;
     ``feature`` names the BMS plane (None where the search found none: a link box
-    touching at the start of the step, or on a piece too fast to fit); ``rewound`` says whether a body of the pair was
-    put back at the contact (or, pushed by a kinematic body, ahead of it); False for a
-    graze shallower than the rewind depth, or when neither body can be moved;
+    touching at the start of the step, or on a piece too fast to fit); ``rewound`` says whether the
+    contact was acted on: the world (or, with no partial step left, the pair's bodies)
+    taken back to it, or a body pushed ahead of a kinematic one; False where pybullet
+    resolves it from where the step left it;
     ``initial`` marks a pair that already touched when the step began and pressed
     deeper during it.
     """
@@ -55,10 +56,9 @@ class CCDStats:
     candidate_pairs: int = 0
     solver_rows: int = 0  # solver calls: a pair whose step is split into n pieces counts up to n
     contacts: int = 0
-    rewinds: int = 0
+    rewinds: int = 0  # times the world, or a body on its own, was taken back to a contact
+    partial_steps: int = 0  # rest-of-step simulations from such a contact
     pushes: int = 0  # bodies moved ahead of a kinematic body that swept into them
-    held: int = 0  # contacts pybullet's solve left pressing in, resolved as collisions by the plugin
-    bounded: int = 0  # partings of handled impacts slowed to what restitution allows
     rediscoveries: int = 0  # world changes read
     # What the exact searches answered, by Outcome value (index with bullet_boxccd.Outcome):
     # every candidate pair's first touch and every contact refit. A degraded answer

@@ -1,0 +1,527 @@
+"""The step's contacts, in one time-ordered pass: which ones pybullet's own solver
+resolves as they are, and, for the others, the time the world is taken back to.
+
+pybullet resolves a pair from where its step leaves it. That is the engine's answer
+when the pair touched as the step began (its solver saw the contact), or when the pair
+meets during the step and ends it barely overlapping (the next step sees it, as a fine
+step would). It goes wrong when a box meets its partner inside the step and ends the
+step deep in it or past it: the rebound then comes from the overlap, not from the
+impact (a deep overlap is pushed out along its least axis, a body gone past the middle
+is pushed out the far side, and one that went through is never seen). For every
+contact the sweep found (the first touch, on conservatively fitted motions), the pair's
+state at the end of the step decides:
+
+* Left to pybullet: the pair touched when the window began and does not go wrong, or it
+  met inside the window and ends it overlapping by less than ``depth_tolerance`` on the
+  right side.
+* Otherwise the world is taken back to the time the pair first overlaps by
+  ``penetration`` on Bullet's own path (``BoxCCD`` then simulates the rest of the step
+  from there, so that pybullet's solver sees the contact as it begins). Every free
+  body goes where its path has it at that time, with the velocity it had there.
+* When the step's partial steps are used up (``max_partial_steps``), only the bodies
+  of such a pair go back, to that time, keeping their velocities; pybullet resolves
+  the contact at the next step.
+
+Kinematic bodies (a fixed base the user teleports) cannot be taken back: a free body a
+teleport swept into is carried with it from the touch and leaves with the velocity of
+a collision with an immovable body moving as the kinematic one did (pybullet's
+combined restitution). Changing one body's path can make it meet another: the contacts
+are taken in time order, and every pair of a body whose path changed is swept again
+from the change on, as in Box2D's time-of-impact loop.
+"""
+
+from __future__ import annotations
+
+import heapq
+from dataclasses import dataclass
+
+import numpy as np
+
+from .. import _core
+from ..motion import axis_angle_matrix, pose7, pose_matrix
+from ..solver import Outcome
+from ._hooks import raw
+from .events import CCDEvent
+from .layout import ANGULAR_VELOCITY, PATH_ROW, POSE, VELOCITY
+from .sweep import CREEP
+from .world import FREE
+
+__all__ = ["Contacts", "place", "bounce"]
+
+_MOVING, _STOPPED, _CARRIED = 0, 1, 2
+_IDENTITY = np.eye(4).reshape(-1)
+
+
+@dataclass
+class _Track:
+    """One frame of a sweep on its effective path through the step: Bullet's, stopped at
+    a time, or carried from a time by another frame's motion."""
+
+    rows: list  # its path rows in the sweep
+    status: int = _MOVING
+    version: int = 0  # bumped at each change of path (a queued contact of an older path is stale)
+    since: float = 0.0  # when its path last changed (tau)
+    stop_time: float = 1.0
+    frozen: np.ndarray = None  # (4, 4) centre-of-mass pose once stopped
+    carry: tuple = None  # (carrier's frame row (42,), CoM in the carrier's frame (4, 4)) once carried
+    carrier: int = -1  # the frame that carries it
+    velocity: tuple = None  # (v, w) it leaves the step with, where the plugin changed them
+
+
+class _Paths:
+    """The frames of a sweep on their effective paths (``_Track``). Rows are the sweep's
+    path rows, rewritten as paths change; all are over the whole step (tau in [0, 1]),
+    valid from the frame's last change on."""
+
+    def __init__(self, sw, tables, state, dt, kinematic):
+        self.tables, self.state, self.dt = tables, state, dt
+        self.rows = sw.rows.copy()
+        self.box = sw.boxes
+        self.frame = tables.box_frame[sw.boxes]
+        self.track = {}
+        for r, f in enumerate(self.frame.tolist()):
+            self.track.setdefault(f, _Track([])).rows.append(r)
+        self.kinematic = kinematic
+
+    def driver(self, f):
+        """The kinematic frame that moves f (f itself, or its carrier's driver)."""
+        while f in self.track and self.track[f].carrier >= 0:
+            f = self.track[f].carrier
+        return f
+
+    def status(self, f):
+        tr = self.track.get(f)
+        return _MOVING if tr is None else tr.status
+
+    def pushes(self, f) -> bool:
+        """f moves on regardless: a kinematic frame, or one carried by it."""
+        return f in self.kinematic or self.status(f) == _CARRIED
+
+    def free(self, f) -> bool:
+        """A free body that the plugin may stop or push (not carried already)."""
+        return self.tables.kind[f] == FREE and f not in self.kinematic and self.status(f) != _CARRIED
+
+    def stoppable(self, f) -> bool:
+        return self.free(f) and self.status(f) == _MOVING
+
+    def twist(self, f):
+        """(v, w) of frame f from now on (what it leaves the step with)."""
+        tr = self.track.get(f)
+        if tr is not None and tr.velocity is not None:
+            return tr.velocity
+        row = self.state.rows[f]
+        return row[VELOCITY].copy(), row[ANGULAR_VELOCITY].copy()
+
+    def com(self, f, tau) -> np.ndarray:
+        """(4, 4) centre-of-mass pose of frame f at tau on its effective path."""
+        tr = self.track.get(f)
+        if tr is not None and tr.status == _CARRIED:
+            carrier, rel = tr.carry
+            return _core.row_poses(carrier[None], np.array([tau]))[0] @ rel
+        if tr is not None and tr.status == _STOPPED and tau >= tr.stop_time:
+            return tr.frozen
+        p = _core.frame_poses(self.state.rows[f][None], self.dt, np.zeros(1, dtype=np.int64), np.array([tau]))[0]
+        return pose_matrix(p[:3], p[3:])
+
+    def stop(self, f, tau):
+        """Frame f stands still from tau on (with the velocity it had)."""
+        tr = self.track[f]
+        tr.frozen = self.com(f, tau)
+        tr.velocity = self.twist(f)
+        for r in tr.rows:
+            X = _core.row_poses(self.rows[[r]], np.array([tau]))[0]
+            self.rows[r] = _still_row(X, self.rows[r])
+        tr.stop_time = tau
+        self._changed(tr, _STOPPED, tau)
+
+    def carried_by(self, f, k, row_k, tau, com=None):
+        """Frame f moves with frame k, of path row ``row_k``, from tau on (from centre-of-mass
+        pose ``com`` (4, 4) at tau, if given, rather than where its path has it)."""
+        tr = self.track[f]
+        carrier = row_k.copy()
+        carrier[PATH_ROW["box_in_frame"]] = _IDENTITY
+        Finv = np.linalg.inv(_core.row_poses(carrier[None], np.array([tau]))[0])
+        com = self.com(f, tau) if com is None else com
+        for r in tr.rows:
+            X_CS = self.tables.X_CS[self.box[r]]
+            self.rows[r, PATH_ROW["pose_after"]] = carrier[PATH_ROW["pose_after"]]
+            for name in ("displacement", "axis", "angle"):
+                self.rows[r, PATH_ROW[name]] = carrier[PATH_ROW[name]]
+            self.rows[r, PATH_ROW["box_in_frame"]] = (Finv @ com @ X_CS).reshape(-1)
+        tr.carry, tr.carrier = (carrier, Finv @ com), k
+        self._changed(tr, _CARRIED, tau)
+
+    @staticmethod
+    def _changed(tr, status, tau):
+        tr.status = status
+        tr.version += 1
+        tr.since = tau
+
+
+class Contacts:
+    """The step's contacts in time order (see the module docstring)."""
+
+    def __init__(self, cid, penetration, depth_tolerance, fit_tolerance, tolerances, stats):
+        self.cid, self.penetration, self.depth_tolerance = cid, penetration, depth_tolerance
+        self.fit_tolerance, self.tolerances, self.stats = fit_tolerance, tolerances, stats
+
+    def resolve(self, sw, jw, tables, state, dt, user_moved, gravity, back=True, horizon=1.0):
+        """Events of the step's sweep ``sw`` and of the kinematic jumps' sweep ``jw`` (either
+        may be None), with what they need applied to pybullet. Returns (events, tau): with
+        ``back``, tau is the earliest time the world is taken back to (1 if none; at most
+        ``horizon``, another contact's such time), every free body is put where its path has
+        it then, and the events are those up to it; without, the bodies of each such contact
+        go back on their own and tau is 1. ``user_moved``: frames the user teleported since
+        the last step (never pushed: their pose is the user's)."""
+        kinematic = set(state.kinematic)
+        events = []
+        pushed = self._jumps(jw, tables, state, dt, kinematic, user_moved, events) if jw is not None else {}
+        paths = _Paths(sw, tables, state, dt, kinematic) if sw is not None and sw.hits else None
+        for d, (k, start, v) in pushed.items():  # then it rides its kinematic body through the step
+            row_k = self._frame_row(tables, state, dt, k)
+            if paths is not None and d in paths.track:
+                paths.carried_by(d, k, row_k, 0.0, com=start)
+                paths.track[d].velocity = (v, np.zeros(3))
+            else:
+                place(self.cid, tables, state, d, pose7(_carry(row_k, 0.0, start)), v, np.zeros(3))
+        tau = horizon if back else 1.0
+        if paths is not None:
+            tau = min(tau, self._time_order(paths, sw, user_moved, events, back, tau))
+        if back and tau < 1.0:
+            self._world_to(paths, tables, state, dt, gravity, tau)
+        elif paths is not None:
+            self._apply(paths, tables, state)
+        return events, tau
+
+    def _apply(self, paths, tables, state):
+        """Put the frames whose paths changed where their paths end, with their velocities."""
+        for f, tr in paths.track.items():
+            if tr.version:
+                v, w = paths.twist(f)
+                place(self.cid, tables, state, f, pose7(paths.com(f, 1.0)), v, w)
+                self.stats.rewinds += tr.status == _STOPPED
+
+    def _world_to(self, paths, tables, state, dt, gravity, tau):
+        """Every free body where its path has it at tau, with the velocity it has there (the
+        rest of the step is simulated again and adds its gravity again), and every kinematic
+        frame with a velocity where Bullet's path has it; carried bodies where their ride
+        ends (the rest of the step would carry them no further)."""
+        track = paths.track if paths is not None else {}
+        carried = {f for f, tr in track.items() if tr.status == _CARRIED}
+        free = [f for f in np.flatnonzero(tables.kind == FREE).tolist() if f not in carried]
+        moving = free + [f for f in state.with_velocity if f in state.kinematic]
+        state.read_poses(state.stale(moving))
+        for f in moving:
+            if f in track:
+                pose, (v, w) = pose7(paths.com(f, tau)), paths.twist(f)
+            else:
+                pose = _core.frame_poses(state.rows, dt, np.array([f], dtype=np.int64), np.array([tau]))[0]
+                v, w = state.rows[f, VELOCITY].copy(), state.rows[f, ANGULAR_VELOCITY].copy()
+            if tables.kind[f] == FREE:
+                v = v - gravity * (1.0 - tau) * dt
+            place(self.cid, tables, state, f, pose, v, w)
+        for f in carried:
+            v, w = paths.twist(f)
+            place(self.cid, tables, state, f, pose7(paths.com(f, 1.0)), v, w)
+
+    # -------------------------------------------------------- time order
+    def _time_order(self, paths, sw, user_moved, events, back, horizon):
+        """Take the contacts in time order up to ``horizon``, acting on those pybullet would
+        resolve wrongly, and sweep again the pairs of every body whose path changed. With
+        ``back``, stop at the first one and return its time; else 1."""
+        pairs_of = {}
+        for q, (i, j) in enumerate(sw.pairs.tolist()):
+            for r in (i, j):
+                pairs_of.setdefault(paths.frame[r], []).append(q)
+        index = sw.pair_index
+        heap = []
+        for i, j, tau in sw.hits:
+            self._queue(heap, paths, index[(i, j)], i, j, 0.0, tau, back)
+        budget = 8 * len(paths.track) + 8  # a cap on actions: each one changes a path
+        while heap:
+            tau_r, _, q, i, j, versions, info = heapq.heappop(heap)
+            if back and tau_r > horizon:
+                break
+            ta, tb = paths.track[paths.frame[i]], paths.track[paths.frame[j]]
+            if versions != (ta.version, tb.version):
+                since = max(ta.since, tb.since)
+                touch = self._first_touch(paths, i, j, since)
+                if touch is not None:
+                    self._queue(heap, paths, q, i, j, since, touch, back)
+                continue
+            if info["action"] is not None and budget <= 0:
+                info["action"] = None  # out of budget: pybullet's, from here on
+            if back and info["action"] == "back":
+                self._report(paths, i, j, info, True, events)
+                return tau_r
+            changed = self._act(paths, i, j, tau_r, info, user_moved)
+            self._report(paths, i, j, info, bool(changed), events)
+            budget -= bool(changed)
+            for f in changed:
+                for q2 in pairs_of.get(f, ()):
+                    i2, j2 = sw.pairs[q2]
+                    if paths.status(paths.frame[i2]) == _STOPPED and paths.status(paths.frame[j2]) == _STOPPED:
+                        continue  # two bodies standing still: nothing more happens
+                    touch = self._first_touch(paths, i2, j2, tau_r)
+                    if touch is not None:
+                        self._queue(heap, paths, q2, i2, j2, tau_r, touch, back)
+        return 1.0
+
+    def _first_touch(self, paths, i, j, lo):
+        """The first touch (a step fraction) of rows i and j over [lo, 1], or None."""
+        if lo >= 1.0:
+            return None
+        w = _core.window_rows(paths.rows[[i, j]], lo, 1.0)
+        tau, states, solves = _core.first_touches(w, np.array([[0, 1]], dtype=np.int64), self.fit_tolerance,
+                                                  self.tolerances._core, self.penetration, CREEP, states=True)
+        self.stats.solver_rows += solves
+        self.stats.count(states)
+        return None if np.isnan(tau[0]) else lo + float(tau[0]) * (1.0 - lo)
+
+    def _queue(self, heap, paths, q, i, j, lo, touch, back):
+        """Judge the pair's contact (first touch ``touch`` in the window [lo, 1]) and queue
+        it at the time to act (or at its touch, to be reported only)."""
+        ta, tb = paths.track[paths.frame[i]], paths.track[paths.frame[j]]
+        info = self._judge(paths, i, j, lo, touch, back)
+        heapq.heappush(heap, (info["act_at"], id(info), q, i, j, (ta.version, tb.version), info))
+
+    def _judge(self, paths, i, j, lo, touch, back):
+        """What the pair (rows i, j) needs: {"act_at": tau, "action": None | "back" | "stop"
+        | "push", "initial", "window", "contact"}: "back" takes the world back to act_at,
+        "stop" the pair's free bodies, "push" carries a free body with the kinematic one."""
+        fa, fb = paths.frame[i], paths.frame[j]
+        w = _core.window_rows(paths.rows[[i, j]], lo, 1.0)
+        s_touch = (touch - lo) / (1.0 - lo)
+        initial = s_touch == 0.0
+        c = self._contact(w, s_touch, 1.0)
+        info = {"act_at": touch, "action": None, "initial": initial, "window": (lo, 1.0), "contact": c}
+        if c is None:  # the fit's allowance touched, the boxes did not: nothing happened
+            return info
+        carried = paths.status(fa) == _CARRIED or paths.status(fb) == _CARRIED
+        push_a = paths.pushes(fa) and paths.free(fb)
+        push_b = paths.pushes(fb) and paths.free(fa)
+        if (push_a or push_b) and (carried or not back):
+            # A body carried by a kinematic teleport, or no partial step left: the
+            # kinematic body cannot be taken back, so the free one is pushed ahead of it.
+            normal = _normal_at_end(w, s_touch, c)
+            if not _overtaken(w if push_a else w[::-1], normal if push_a else -normal, self.penetration):
+                return info
+            action = "push"
+        elif paths.stoppable(fa) or paths.stoppable(fb) or (back and (push_a or push_b)):
+            action = "back" if back else "stop"
+        else:
+            return info
+        end_depth = float(_core.path_depth(w, np.ones(1))[0])
+        if initial:
+            # Touching as the window began: pybullet's solver saw it. Acted on only if it
+            # presses in by more than a creep (a box pivoting on a corner sinks that corner
+            # slowly), up to depth_tolerance: the next corner of a turning box striking, or
+            # a body driven through.
+            thin = min(w[0, PATH_ROW["half_extents"]].min(), w[1, PATH_ROW["half_extents"]].min())
+            d0 = float(_core.path_depth(w, np.zeros(1))[0])
+            target = max(d0, 0.0) + max(self.penetration, min(CREEP * thin, self.depth_tolerance))
+        else:
+            target = self.penetration
+        wrong = _goes_wrong(w, s_touch, c, target) or end_depth > (target if initial else self.depth_tolerance)
+        if action != "push" and not wrong:
+            return info
+        s_act = _core.first_depth(w, s_touch, target)
+        if np.isnan(s_act):
+            if action != "push":  # never as deep as that: a graze
+                return info
+            s_act = s_touch
+        info.update(action=action, act_at=lo + s_act * (1.0 - lo), pusher_first=push_a)
+        return info
+
+    def _act(self, paths, i, j, tau, info, user_moved):
+        """Act on a contact ("stop" or "push"); returns the frames whose paths changed."""
+        fa, fb = paths.frame[i], paths.frame[j]
+        c = info["contact"]
+        if c is None or info["action"] is None:
+            return []
+        if info["action"] == "push":
+            k, d = (fa, fb) if info["pusher_first"] else (fb, fa)
+            if d in user_moved:
+                return []
+            row_k = paths.rows[i if info["pusher_first"] else j]
+            normal = _moved_with(row_k, tau, c.normal if info["pusher_first"] else -c.normal)
+            paths.carried_by(d, k, row_k, tau)
+            com1 = paths.com(d, 1.0)[:3, 3]
+            v = self._push_velocity(paths.tables, paths.state, paths.dt, d, paths.driver(k), com1, normal,
+                                    paths.twist(d)[0])
+            paths.track[d].velocity = (v, paths.twist(d)[1])
+            return [d]
+        changed = [f for f in (fa, fb) if paths.stoppable(f)]
+        for f in changed:
+            paths.stop(f, tau)
+        return changed
+
+    @staticmethod
+    def _report(paths, i, j, info, acted, events):
+        c = info["contact"]
+        if c is None:
+            return
+        lo, hi = info["window"]
+        t_event = lo + c.t * (hi - lo)
+        fa, fb = paths.frame[i], paths.frame[j]
+        keys = paths.tables.keys
+        events.append(CCDEvent(*keys[fa], *keys[fb], t_event, t_event * paths.dt, c.point, c.normal, c.feature,
+                               acted, info["initial"]))
+
+    # -------------------------------------------------------------- jumps
+    def _jumps(self, jw, tables, state, dt, kinematic, user_moved, events):
+        """Free bodies a kinematic jump (the user's teleport before the step) swept into,
+        carried with it from the touch to where it stood when the step began: their path
+        through the step (Bullet's, in a world where the kinematic body was already there)
+        is replaced by a ride on it. Returns {frame: (kinematic frame, centre-of-mass pose
+        (4, 4) at the step's start, velocity)}."""
+        pushed = {}
+        for i, j, tau in sorted(jw.hits, key=lambda h: h[2]):
+            k, d = tables.box_frame[jw.boxes[[i, j]]].tolist()
+            pair = jw.rows[[i, j]]
+            c = self._contact(pair, tau, 1.0)
+            if c is None:
+                continue
+            act = tables.kind[d] == FREE and d not in kinematic and d not in user_moved and d not in pushed
+            events.append(CCDEvent(*tables.keys[k], *tables.keys[d], 0.0, 0.0, c.point, c.normal, c.feature,
+                                   bool(act), False))
+            if act:
+                start = _core.frame_poses(state.rows, dt, np.array([d], dtype=np.int64), np.zeros(1))[0]
+                X = _carry(pair[0], tau, pose_matrix(start[:3], start[3:]))
+                normal = _moved_with(pair[0], tau, c.normal)
+                v = self._push_velocity(tables, state, dt, d, k, X[:3, 3], normal, state.rows[d, VELOCITY])
+                pushed[d] = (k, X, v)
+        return pushed
+
+    @staticmethod
+    def _frame_row(tables, state, dt, k):
+        """Path row of kinematic frame k's own motion through the step (box = the frame)."""
+        box = tables.frame_boxes[k][0]
+        row = _core.path_rows(state.rows, dt, np.array([box], dtype=np.int64), tables.box_frame, tables.X_CS,
+                              tables.half)[0]
+        row[PATH_ROW["box_in_frame"]] = _IDENTITY
+        return row
+
+    # -------------------------------------------------------------- pushes
+    def _push_velocity(self, tables, state, dt, d, k, point, normal, v):
+        """Frame d's velocity after a collision, at ``point`` along ``normal`` (from the
+        pusher), with an immovable body moving as kinematic frame k moved over the whole
+        step (its jump and the step's own motion), its own velocity v before."""
+        self.stats.pushes += 1
+        return bounce(self.cid, tables, d, k, v, self._kinematic_velocity(state, dt, k, point), normal)
+
+    @staticmethod
+    def _kinematic_velocity(state, dt, k, point):
+        """Velocity at world point ``point`` (after the step) of kinematic frame k's move from
+        its pose before the step to its pose after, taken in dt."""
+        e0, e1 = state.pose0.get(k, state.rows[k, POSE]), state.rows[k, POSE]
+        one = np.zeros(1, dtype=np.int64)
+        move = _core.path_rows_between(e0[None], e1[None], one, one, np.eye(4)[None], np.zeros((1, 3)))[0]
+        omega = move[PATH_ROW["axis"]] * move[PATH_ROW["angle"]][0] / dt
+        return move[PATH_ROW["displacement"]] / dt + np.cross(omega, point - e1[:3])
+
+    def _contact(self, pair, lo, hi):
+        """The first touch of a pair (path rows) in [lo, hi] (step fractions): one solve on
+        a quadratic refit of the exact path over that window, the boxes inflated by the
+        refit's error bound so that a touch cannot be missed; None if they stay apart
+        (the first touch found on the step's fit was within that fit's allowance only). Its
+        outcome is counted in the stats."""
+        c = _core.path_contact(pair, lo, hi, self.tolerances._core)
+        self.stats.outcomes[Outcome.SEPARATED if c is None else c.outcome] += 1
+        return c
+
+
+# ------------------------------------------------------- shared with articulated.py
+def place(cid, tables, state, f, pose, v, w):
+    """Put free frame f's body at ``pose`` (centre of mass: position, quaternion) with
+    velocities v, w, in pybullet and in the frame-state rows."""
+    b = tables.keys[f][0]
+    raw.resetBasePositionAndOrientation(b, pose[:3].tolist(), pose[3:].tolist(), physicsClientId=cid)
+    raw.resetBaseVelocity(b, np.asarray(v).tolist(), np.asarray(w).tolist(), physicsClientId=cid)
+    state.rows[f, POSE], state.rows[f, VELOCITY], state.rows[f, ANGULAR_VELOCITY] = pose, v, w
+
+
+def bounce(cid, tables, d, k, v, v_k, normal):
+    """Frame d's velocity (v before) after a collision along ``normal`` (from the pusher)
+    with an immovable body moving at v_k there, frame k's: pybullet's combined
+    restitution on the approach, nothing if they part already."""
+    v = np.array(v, float)
+    if np.all(np.isfinite(normal)):
+        approach = float(np.dot(v - v_k, normal))
+        if approach < 0.0:
+            e = (raw.getDynamicsInfo(*tables.keys[d], physicsClientId=cid)[5] *
+                 raw.getDynamicsInfo(*tables.keys[k], physicsClientId=cid)[5])
+            v = v - (1.0 + e) * approach * normal
+    return v
+
+
+# ---------------------------------------------------------------- geometry
+def _goes_wrong(w, s_touch, contact, target):
+    """Whether pybullet would resolve the pair (rows w over their window, first touch at
+    s_touch, ``contact`` with unit normal n from A towards B) wrongly from where it ends.
+
+    Overlapping: pybullet pushes B out along the least overlap, away from A's centre. That
+    is wrong if it points out of A's far side (against n, which turns with the body whose
+    face it is), and fragile once B has gone in past half the pair's depth along n (the
+    centres then near each other along n: the next overlap can flip it). Apart: wrong if
+    they overlapped by ``target`` or more on the way (a contact pybullet never saw: passed
+    through, or struck and left)."""
+    if not np.all(np.isfinite(contact.normal)):
+        return True
+    depth, axis = _core.path_separation(w, 1.0)
+    if depth <= 0.0:
+        return not np.isnan(_core.first_depth(w, s_touch, target))
+    n = _normal_at_end(w, s_touch, contact)
+    (ca, Ra, ha), (cb, Rb, hb) = (_box_at_end(row) for row in w)
+    reach = np.abs(Ra.T @ n) @ ha + np.abs(Rb.T @ n) @ hb
+    return float(np.dot(axis, n)) < 0.0 or float(np.dot(cb - ca, n)) < 0.5 * reach
+
+
+def _normal_at_end(w, s, contact):
+    """The contact normal at s, turned to the end of the window with the body whose face
+    it is (for an edge-edge contact, the one that turns less)."""
+    kind = contact.feature.kind
+    angles = [row[PATH_ROW["angle"]][0] for row in w]
+    body = 0 if kind == "OV" else 1 if kind == "VO" else int(np.argmin(angles))
+    return _moved_with(w[body], s, contact.normal)
+
+
+def _overtaken(wk, n, penetration):
+    """Whether the pusher's box (row wk[0]) ends the step into or past the box it touched
+    (wk[1]): their separation along the contact normal at the end (n, from the pusher),
+    below ``penetration``."""
+    if not np.all(np.isfinite(n)):
+        return True
+    (cp, Rp, hp), (cd, Rd, hd) = (_box_at_end(row) for row in wk)
+    gap = float(np.dot(cd - cp, n)) - np.abs(Rp.T @ n) @ hp - np.abs(Rd.T @ n) @ hd
+    return gap < penetration
+
+
+def _moved_with(row, s, v):
+    """Direction v at s, turned with the row's frame to the end of its path."""
+    return axis_angle_matrix(row[PATH_ROW["axis"]], (1.0 - s) * row[PATH_ROW["angle"]][0]) @ v
+
+
+def _carry(row, tau, X):
+    """Pose X (4, 4) at tau moved rigidly with the frame of path row ``row`` to its end."""
+    frame = row.copy()
+    frame[PATH_ROW["box_in_frame"]] = _IDENTITY
+    F_tau, F_1 = _core.row_poses(np.stack([frame, frame]), np.array([tau, 1.0]))
+    return F_1 @ np.linalg.solve(F_tau, X)
+
+
+def _still_row(X, row):
+    """A row of the same box standing at pose X (its box's pose) through the step."""
+    out = row.copy()
+    out[PATH_ROW["pose_after"]] = X.reshape(-1)
+    out[PATH_ROW["displacement"]] = 0.0
+    out[PATH_ROW["axis"]] = 0.0
+    out[PATH_ROW["angle"]] = 0.0
+    out[PATH_ROW["box_in_frame"]] = _IDENTITY
+    return out
+
+
+def _box_at_end(row):
+    """(centre, axes (3, 3) columns, half extents) of a path row's box after the step."""
+    X = _core.row_poses(row[None], np.ones(1))[0]
+    return X[:3, 3], X[:3, :3], row[PATH_ROW["half_extents"]]
