@@ -41,14 +41,21 @@ def closest(cid, ev):
     return min(c[8] for c in pts) if pts else np.inf
 
 
+# With no partial step left, the bodies of a contact pybullet would resolve wrongly end
+# the step at the contact: that is where the checks of the contact poses look.
+STOP_AT_CONTACT = dict(max_partial_steps=0)
+PENETRATION = 1e-5  # BoxCCD's default
+
+
 def check_rewound_poses(cid, events, margin=0.001):
-    """Test 4: a first-touch rewind leaves the pair touching by pybullet's own measure:
-    0 to 1e-6 m deep at a face, up to the margin's rounding apart at a vertex or edge."""
+    """Test 4: a body put back at its first touch is touching by pybullet's own measure:
+    0 to the rewind depth deep at a face, up to the margin's rounding apart at a vertex
+    or edge."""
     n = 0
     for ev in events:
         if ev.rewound and not ev.initial:
             d = closest(cid, ev)
-            assert -1e-6 <= d <= margin + 1e-6, (ev, d)
+            assert -PENETRATION - 1e-6 <= d <= margin + 1e-6, (ev, d)
             n += 1
     return n
 
@@ -74,15 +81,16 @@ def test_step_path_reproduces_bullets_integration(cid):
 
 
 # ------------------------------------------------------------- 1. thin walls
-def thin_wall_run(cid, use, speed, thickness, phase, spin, orn, cube_kw=None, register=None):
+def thin_wall_run(cid, use, speed, thickness, phase, spin, orn, cube_kw=None, register=None, ccd_kw=None):
     """A cube at ``speed`` against a static wall of ``thickness`` in the plane x = 0 (2 m
     square). Returns (passed through: its centre crossed the wall's plane within the
-    wall, events, rewound poses checked)."""
+    wall, events, rewound poses checked: with ``ccd_kw`` STOP_AT_CONTACT)."""
     reset(cid)
     wall = box(cid, [thickness / 2, 1, 1], [0, 0, 0], mass=0.0)
     cube = box(cid, [0.05] * 3, [-0.3 - phase * speed * DT, 0.1, 0.05], orn=orn, **(cube_kw or {}))
     p.resetBaseVelocity(cube, [speed, 0, 0], spin, physicsClientId=cid)
-    ccd = BoxCCD(cid) if use else None
+    ccd = BoxCCD(cid, **(ccd_kw or {})) if use else None
+    check = ccd_kw == STOP_AT_CONTACT
     if ccd is not None and register:
         register(ccd, cube)
     if ccd is not None:
@@ -101,7 +109,7 @@ def thin_wall_run(cid, use, speed, thickness, phase, spin, orn, cube_kw=None, re
             p.stepSimulation(physicsClientId=cid)
         else:
             evs = ccd.step()
-            checked += check_rewound_poses(cid, evs)
+            checked += check_rewound_poses(cid, evs) if check else 0
             events += evs
         after = centre()
         if before[0] < 0.0 <= after[0]:  # where the centre crossed x = 0: inside the wall's face?
@@ -127,7 +135,8 @@ def test_thin_wall_never_tunnels(cid, speed, thickness):
     plain = ccd_through = checked = 0
     for phase, spin, orn in phases():
         plain += thin_wall_run(cid, False, speed, thickness, phase, spin, orn)[0]
-        through, _, n = thin_wall_run(cid, True, speed, thickness, phase, spin, orn)
+        ccd_through += thin_wall_run(cid, True, speed, thickness, phase, spin, orn)[0]
+        through, _, n = thin_wall_run(cid, True, speed, thickness, phase, spin, orn, ccd_kw=STOP_AT_CONTACT)
         ccd_through += through
         checked += n
     assert ccd_through == 0
@@ -175,9 +184,7 @@ def test_two_fast_boxes_collide_and_conserve_momentum(cid, angle_deg):
         ccd = BoxCCD(cid)
         events = []
         for _ in range(int(gap / 400 / DT) + 8):
-            evs = ccd.step()
-            check_rewound_poses(cid, evs)
-            events += evs
+            events += ccd.step()
         va = np.array(p.getBaseVelocity(a, physicsClientId=cid)[0])
         vb = np.array(p.getBaseVelocity(b, physicsClientId=cid)[0])
         assert events, "no CCD contact"
@@ -239,7 +246,9 @@ FRAME_CASES = {
 def test_frames_thin_wall(cid, name):
     checked = 0
     for phase, spin, orn in phases(12, seed=3):
-        through, events, n = thin_wall_run(cid, True, 100.0, 0.001, phase, spin, orn, FRAME_CASES[name])
+        assert not thin_wall_run(cid, True, 100.0, 0.001, phase, spin, orn, FRAME_CASES[name])[0]
+        through, events, n = thin_wall_run(cid, True, 100.0, 0.001, phase, spin, orn, FRAME_CASES[name],
+                                           ccd_kw=STOP_AT_CONTACT)
         assert not through
         checked += n
     assert checked >= 6  # the rewound poses, checked by pybullet's own distance
@@ -250,7 +259,8 @@ def test_maximal_coordinates_are_read_without_registering(cid):
     for phase, spin, orn in phases(12, seed=4):
         kw = dict(maximal=True)
         plain += thin_wall_run(cid, False, 100.0, 0.001, phase, spin, orn, kw)[0]
-        through, events, n = thin_wall_run(cid, True, 100.0, 0.001, phase, spin, orn, kw)
+        assert not thin_wall_run(cid, True, 100.0, 0.001, phase, spin, orn, kw)[0]
+        through, events, n = thin_wall_run(cid, True, 100.0, 0.001, phase, spin, orn, kw, ccd_kw=STOP_AT_CONTACT)
         assert not through
         checked += n
     assert checked >= 6 and plain > 0
@@ -258,7 +268,7 @@ def test_maximal_coordinates_are_read_without_registering(cid):
 
 def test_compound_link_of_several_boxes(cid):
     """A dumbbell: two cubes and a bar on one link, with frame offsets, at 100 m/s."""
-    for phase, spin, orn in phases(12, seed=5):
+    for (phase, spin, orn), kw in zip(phases(24, seed=5), [{}, STOP_AT_CONTACT] * 12):
         reset(cid)
         box(cid, [0.0005, 1, 1], [0, 0, 0], mass=0.0)
         col = p.createCollisionShapeArray([p.GEOM_BOX] * 3, halfExtents=[[0.04] * 3, [0.04] * 3, [0.1, 0.01, 0.01]],
@@ -268,10 +278,12 @@ def test_compound_link_of_several_boxes(cid):
                               physicsClientId=cid)
         p.changeDynamics(b, -1, maxJointVelocity=10000, linearDamping=0, angularDamping=0, physicsClientId=cid)
         p.resetBaseVelocity(b, [100, 0, 0], spin, physicsClientId=cid)
-        ccd = BoxCCD(cid)
+        ccd = BoxCCD(cid, **kw)
         assert ccd.stats.tracked_boxes == 4
         for _ in range(40):
-            check_rewound_poses(cid, ccd.step())
+            events = ccd.step()
+            if kw:
+                check_rewound_poses(cid, events)
         assert com_x(cid, b) < 0.0
 
 
@@ -400,8 +412,8 @@ def test_articulated_link_is_swept_and_its_free_partner_rewound(cid):
     assert any(e.rewound for e in mine)
 
 
-# ---------------------------------------------------------- exact-time mode
-def test_exact_time_mode_steps_the_world_to_the_contact_and_on(cid):
+# ---------------------------------------------------------- partial steps
+def test_partial_steps_take_the_world_to_the_contact_and_on(cid):
     """The whole world stops at the contact, the rest of the step is simulated from
     there: no tunneling, the speed kept at restitution 1, and bystanders keep their
     exact paths (stopped and restarted, not delayed, and not given gravity twice)."""
@@ -417,12 +429,12 @@ def test_exact_time_mode_steps_the_world_to_the_contact_and_on(cid):
         p.resetBaseVelocity(idler, [0.1, 0, 0], [0, 0, 0], physicsClientId=cid)
         p.resetBaseVelocity(cube, [50, 0, 0], [0, 0, 0], physicsClientId=cid)
         p.resetBaseVelocity(bystander, [20, 0, 0], [0, 0, 0], physicsClientId=cid)
-        ccd = BoxCCD(cid, exact_time=True)
+        ccd = BoxCCD(cid)
         n = 40
         for _ in range(n):
             ccd.step()
         assert p.getPhysicsEngineParameters(physicsClientId=cid)["fixedTimeStep"] == DT
-        rewinds += ccd.stats.rewinds
+        rewinds += ccd.stats.partial_steps
         assert abs(p.getBaseVelocity(cube, physicsClientId=cid)[0][0] + 50.0) <= 1.0
         assert com_x(cid, cube) < 0.0
         assert abs(com_x(cid, bystander) - (-0.3 + 20 * n * DT)) < 1e-9
@@ -432,4 +444,4 @@ def test_exact_time_mode_steps_the_world_to_the_contact_and_on(cid):
         z = p.getBasePositionAndOrientation(faller, physicsClientId=cid)[0][2]
         assert abs(vz + 9.81 * n * DT) < 1e-9
         assert abs(z - (20.0 - 9.81 * DT**2 * n * (n + 1) / 2)) < 1e-9
-    assert rewinds >= 4 * 4  # in at least 4 phases the world stopped: the cube, the bystander, the idler, the faller
+    assert rewinds >= 4  # in at least 4 phases the world went back to the contact
