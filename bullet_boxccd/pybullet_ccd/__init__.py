@@ -67,6 +67,10 @@ class BoxCCD:
         box's smallest full extent in a step (a slower box overlaps anything it meets in
         some step, so pybullet's discrete contacts catch it). Default 0.25; at least 0;
         above 1 a box may skip a thin wall unswept (warned).
+    sweep_distance : float
+        A box is also swept when its fastest point moves more than this (m) in a step,
+        whatever its size: a large box moving less than its ``sweep_threshold`` can still
+        end a step this deep in what it meets. Default 0.01; at least 0.
     fit_tolerance : float
         Largest allowed error of the quadratic rotation fit, as a fraction of the box's
         smallest half extent, in (0, 1]; a step is split into 2, 4, ... pieces until it
@@ -91,11 +95,13 @@ class BoxCCD:
         Solver tolerances.
     """
 
-    def __init__(self, physics_client_id: int = 0, *, sweep_threshold: float = 0.25, fit_tolerance: float = 0.05,
+    def __init__(self, physics_client_id: int = 0, *, sweep_threshold: float = 0.25, sweep_distance: float = 0.01,
+                 fit_tolerance: float = 0.05,
                  penetration: float = 1e-5, depth_tolerance: float = 1e-3, self_collision_bodies=(),
                  max_partial_steps: int = 8, tolerances: Tolerances = DEFAULT_TOLERANCES):
         self.cid = _client(physics_client_id)
         self.sweep_threshold = _number("sweep_threshold", sweep_threshold, 0.0, math.inf)
+        self.sweep_distance = _number("sweep_distance", sweep_distance, 0.0, math.inf)
         self.fit_tolerance = _number("fit_tolerance", fit_tolerance, 0.0, 1.0, open_low=True)
         self.penetration = _number("penetration", penetration, 0.0, 1e-3, open_low=True)
         self.depth_tolerance = _number("depth_tolerance", depth_tolerance, 0.0, math.inf)
@@ -116,6 +122,8 @@ class BoxCCD:
         self._params_seen = -1
         self._moves_seen = self.world.journal.last_move  # moves made while building the world are not sweeps
         self._quiet, self._epoch = False, -1  # whether a step may skip every check (see step)
+        self._known = False  # whether the frame-state rows hold the velocities the next step starts from
+        self._struck = set()  # frames of the contact the world was taken back to, as the partial step began
         self._sync()
 
     # ------------------------------------------------------------ the world
@@ -128,11 +136,12 @@ class BoxCCD:
         if self.world.sync():
             self.stats.rediscoveries += 1
             t = self.world.tables
-            self._sweep_reach = self.sweep_threshold * 2.0 * t.half.min(axis=1) if len(t.half) else np.zeros(0)
+            self._sweep_reach = np.minimum(self.sweep_threshold * 2.0 * t.half.min(axis=1), self.sweep_distance)
             self._chains = Articulated(self.cid, t, self.world.self_collision(), self._warn)
             rigid_reach = self._sweep_reach.copy()
             rigid_reach[self._chains.boxes] = math.inf  # swept on their own paths (articulated)
             self._state = FrameState(self.cid, t, rigid_reach, self._chains.frames)
+            self._known = False
             self.stats.tracked_boxes = len(t.half)
             small = t.half.min() if len(t.half) else math.inf
             if self.penetration >= 0.1 * small:
@@ -174,8 +183,10 @@ class BoxCCD:
         if self._quiet and last_serial() == self._epoch and raw.getNumBodies(physicsClientId=cid) == self.world.count:
             # Nothing changed in the world since the last step: step, read the velocities
             # (the one read per body pybullet's API forces), and stop there if nothing is fast.
-            raw.stepSimulation(physicsClientId=cid)
             st = self._state
+            st.begin(self._known)
+            raw.stepSimulation(physicsClientId=cid)
+            self._known = True
             fast = st.sweeper.fast(self._dt, st.moving, st.twists())
             self.stats.steps += 1
             if fast is None and not self._chains.bodies:
@@ -218,12 +229,15 @@ class BoxCCD:
         then the rest of it again from each contact the world is taken back to, until the
         step is done. ``stepped``: pybullet took the step already, the velocities are
         read, and ``fast`` are the fast boxes (``Sweeper.fast``; None: none)."""
+        self._known &= self.world.journal.last_move <= self._moves_seen  # the user changed no velocity
         moved_static, with_velocity, user_moved = self._user_moves()
         t_start, elapsed, piece, events = time.perf_counter(), 0.0, h, []
+        self._struck = set()
         try:
             for k in range(1 + self.max_partial_steps):
                 self._state.begin_kinematic(moved_static, with_velocity)
                 if not stepped:
+                    self._state.begin(self._known)
                     raw.stepSimulation(physicsClientId=self.cid)
                 t_sim = time.perf_counter()
                 self.stats.seconds["step"] += t_sim - t_start
@@ -268,7 +282,8 @@ class BoxCCD:
         st = self._state
         if not stepped:
             st.read_velocities()
-        self._chains.read(h, st)
+        self._chains.read(h, st, self._known)
+        self._known = True
         st.end_kinematic(h)
         sw = None if stepped and fast is None else sweep(self.cid, t, st, h, self.fit_tolerance, self.tolerances,
                                                           self.penetration, self.stats, t0, fast)
@@ -280,10 +295,12 @@ class BoxCCD:
         if back:
             # One time order: the free bodies' contacts up to the earliest articulated one
             # that needs the world back; the world then goes back to the earlier of the two.
-            tau_links = self._chains.act_at(found)
-            events, tau = self.contacts.resolve(sw, jw, t, st, h, user_moved, self._gravity, True, tau_links)
+            tau_links, struck_links = self._chains.act_at(found)
+            events, tau = self.contacts.resolve(sw, jw, t, st, h, user_moved, self._gravity, True, tau_links,
+                                                self._struck)
             if tau < 1.0:
-                self._chains.stop_all(tau, st, self._gravity * (1.0 - tau) * h)
+                self._chains.stop_all(tau, st, self._struck)
+                self._struck = self.contacts.struck or struck_links
                 self.stats.rewinds += 1
             events = self._chains.events(found, tau, tau if tau < 1.0 else None) + events
         else:

@@ -62,7 +62,7 @@ class _Body:
     moving_joints: list = None  # its joints that are not fixed, and where each one's
     q_spans: list = None  # coordinates and velocities lie in the flat q and qdot
     qdot_spans: list = None
-    free_base: bool = True  # a base of mass > 0 (Bullet moves a fixed one only by a velocity given to it)
+    start: tuple = None  # (base velocity (6,), qdot) when the step began, if known
 
 
 class Articulated:
@@ -86,7 +86,6 @@ class Articulated:
             self.bodies[b] = _Body(b, chain, frames, links, [(f, i) for f in frames for i in tables.frame_boxes[f]],
                                    _excluded(chain.parent, bits) if bits is not None else None)
         for rec in self.bodies.values():
-            rec.free_base = raw.getDynamicsInfo(rec.body, -1, physicsClientId=cid)[0] > 0.0
             rec.link_of_frame = np.array([rec.links[f] for f in rec.frames], dtype=np.int64)
             ch = rec.chain
             rec.moving_joints = [j for j in range(ch.n_links) if ch.joint_type[j] != pybullet.JOINT_FIXED]
@@ -100,13 +99,14 @@ class Articulated:
         self._rigid = np.setdiff1d(np.arange(len(tables.radius)), self.boxes, assume_unique=True)
 
     # ------------------------------------------------------------ reading
-    def read(self, dt, state):
+    def read(self, dt, state, known=True):
         """Read every articulated body after the step, and put its frames' poses after the
         step and their chords (as velocities) in ``state.rows``."""
         cid, self._dt = self.cid, dt
         for rec in self.bodies.values():
             pos, orn = raw.getBasePositionAndOrientation(rec.body, physicsClientId=cid)
             v, w = raw.getBaseVelocity(rec.body, physicsClientId=cid)
+            rec.start = (rec.base_state[7:13], rec.qdot) if known and rec.base_state is not None else None
             rec.base_state = np.array([*pos, *orn, *v, *w], dtype=np.float64)
             n = rec.chain.n_links
             if n:
@@ -181,9 +181,15 @@ class Articulated:
                          act is not None and (acted_at is None or act == acted_at), initial)
                 for touch, act, c, initial, _, _, f, g, _ in found if touch <= upto]
 
-    def act_at(self, found) -> float:
-        """The earliest time one of ``find``'s contacts needs the world back at (1 if none)."""
-        return min((x[1] for x in found if x[1] is not None), default=1.0)
+    @staticmethod
+    def act_at(found):
+        """(the earliest time one of ``find``'s contacts needs the world back at (1 if
+        none), the frames of that contact)."""
+        acting = [x for x in found if x[1] is not None]
+        if not acting:
+            return 1.0, set()
+        first = min(acting, key=lambda x: x[1])
+        return first[1], {first[6], first[7]}
 
     def stop_each(self, found, state, dt, stats):
         """No partial step left: stop each body whose pair needs it at its own time, or push
@@ -312,17 +318,22 @@ class Articulated:
         place(self.cid, self.tables, state, g, pose7(X1), v, state.rows[g, ANGULAR_VELOCITY].copy())
 
     # ------------------------------------------------------------ stopping
-    def stop(self, rec, tau, state, dv=None):
-        """Put the body where its path has it at tau (base pose, joint positions), with the
-        velocities it had after the step (the base's less ``dv``: the gravity of the rest of
-        the step, when it is simulated again); its frames stand still from there."""
+    def stop(self, rec, tau, state, back=False):
+        """Put the body where its path has it at tau (base pose, joint positions); its
+        frames stand still from there. With ``back`` (the rest of the step is simulated
+        again), its velocities are those between its velocities before and after the step
+        in proportion (after the step if those before are not known); else those after."""
         cid, m = self.cid, rec.motion
         base = m.base_pose(tau)
-        v = rec.base_state[7:10] if dv is None or not rec.free_base else rec.base_state[7:10] - dv
+        twist, qdot = rec.base_state[7:13].copy(), rec.qdot
+        if back and rec.start is not None and len(rec.start[1]) == len(qdot):
+            twist = rec.start[0] + tau * (twist - rec.start[0])
+            qdot = rec.start[1] + tau * (qdot - rec.start[1])
+        rec.base_state[7:13], rec.qdot = twist, qdot  # the next (partial) step starts from these
         raw.resetBasePositionAndOrientation(rec.body, base[:3].tolist(), base[3:].tolist(), physicsClientId=cid)
-        raw.resetBaseVelocity(rec.body, v.tolist(), rec.base_state[10:13].tolist(), physicsClientId=cid)
+        raw.resetBaseVelocity(rec.body, twist[:3].tolist(), twist[3:].tolist(), physicsClientId=cid)
         if rec.moving_joints:
-            q, qdot = m.joint_positions(tau).tolist(), rec.qdot.tolist()
+            q, qdot = m.joint_positions(tau).tolist(), qdot.tolist()
             raw.resetJointStatesMultiDof(rec.body, rec.moving_joints, [q[a:b] for a, b in rec.q_spans],
                                          [qdot[a:b] for a, b in rec.qdot_spans], physicsClientId=cid)
         ends = m.link_poses(tau)
@@ -332,11 +343,13 @@ class Articulated:
             state.rows[f, TWIST] = 0.0
         rec.motion = None  # its paths are no longer this step's
 
-    def stop_all(self, tau, state, dv):
-        """The world taken back to tau: every articulated body where its path has it then."""
+    def stop_all(self, tau, state, struck=()):
+        """The world taken back to tau: every articulated body where its path has it then
+        (those with a frame ``struck`` at the start of the step keep their velocities after
+        it: they took their impact's impulse whole then)."""
         for rec in self.bodies.values():
             if rec.motion is not None:
-                self.stop(rec, tau, state, dv)
+                self.stop(rec, tau, state, back=not struck.intersection(rec.frames))
 
 
 def _goes_wrong(a, b, s_act):

@@ -165,16 +165,18 @@ class Contacts:
         self.cid, self.penetration, self.depth_tolerance = cid, penetration, depth_tolerance
         self.fit_tolerance, self.tolerances, self.stats = fit_tolerance, tolerances, stats
 
-    def resolve(self, sw, jw, tables, state, dt, user_moved, gravity, back=True, horizon=1.0):
+    def resolve(self, sw, jw, tables, state, dt, user_moved, gravity, back=True, horizon=1.0, struck=()):
         """Events of the step's sweep ``sw`` and of the kinematic jumps' sweep ``jw`` (either
         may be None), with what they need applied to pybullet. Returns (events, tau): with
         ``back``, tau is the earliest time the world is taken back to (1 if none; at most
         ``horizon``, another contact's such time), every free body is put where its path has
         it then, and the events are those up to it; without, the bodies of each such contact
         go back on their own and tau is 1. ``user_moved``: frames the user teleported since
-        the last step (never pushed: their pose is the user's)."""
+        the last step (never pushed: their pose is the user's); ``struck``: frames whose
+        contact the world was taken back to at the start of this (partial) step. The frames
+        of the contact the world goes back to are left in ``self.struck``."""
         kinematic = set(state.kinematic)
-        events = []
+        events, self.struck = [], set()
         pushed = self._jumps(jw, tables, state, dt, kinematic, user_moved, events) if jw is not None else {}
         paths = _Paths(sw, tables, state, dt, kinematic) if sw is not None and sw.hits else None
         for d, (k, start, v) in pushed.items():  # then it rides its kinematic body through the step
@@ -188,7 +190,7 @@ class Contacts:
         if paths is not None:
             tau = min(tau, self._time_order(paths, sw, user_moved, events, back, tau))
         if back and tau < 1.0:
-            self._world_to(paths, tables, state, dt, gravity, tau)
+            self._world_to(paths, tables, state, dt, gravity, tau, struck)
         elif paths is not None:
             self._apply(paths, tables, state)
         return events, tau
@@ -201,11 +203,17 @@ class Contacts:
                 place(self.cid, tables, state, f, pose7(paths.com(f, 1.0)), v, w)
                 self.stats.rewinds += tr.status == _STOPPED
 
-    def _world_to(self, paths, tables, state, dt, gravity, tau):
-        """Every free body where its path has it at tau, with the velocity it has there (the
-        rest of the step is simulated again and adds its gravity again), and every kinematic
-        frame with a velocity where Bullet's path has it; carried bodies where their ride
-        ends (the rest of the step would carry them no further)."""
+    def _world_to(self, paths, tables, state, dt, gravity, tau, struck):
+        """Every free body where its path has it at tau, and every kinematic frame with a
+        velocity where Bullet's path has it; carried bodies where their ride ends (the rest
+        of the step would carry them no further).
+
+        The rest of the step is simulated again and adds its share of gravity, contacts and
+        friction again, so a free body leaves tau with the velocity between its velocities
+        before and after the step, in proportion; but one ``struck`` at the start of the
+        step took its impact's impulse whole there, and leaves with its velocity after the
+        step less the rest of the step's gravity (as does any whose velocity before the
+        step is not known)."""
         track = paths.track if paths is not None else {}
         carried = {f for f, tr in track.items() if tr.status == _CARRIED}
         free = [f for f in np.flatnonzero(tables.kind == FREE).tolist() if f not in carried]
@@ -218,7 +226,11 @@ class Contacts:
                 pose = _core.frame_poses(state.rows, dt, np.array([f], dtype=np.int64), np.array([tau]))[0]
                 v, w = state.rows[f, VELOCITY].copy(), state.rows[f, ANGULAR_VELOCITY].copy()
             if tables.kind[f] == FREE:
-                v = v - gravity * (1.0 - tau) * dt
+                if state.twist0 is not None and f not in struck:
+                    v0, w0 = state.twist0[f, :3], state.twist0[f, 3:]
+                    v, w = v0 + tau * (v - v0), w0 + tau * (w - w0)
+                else:
+                    v = v - gravity * (1.0 - tau) * dt
             place(self.cid, tables, state, f, pose, v, w)
         for f in carried:
             v, w = paths.twist(f)
@@ -253,6 +265,7 @@ class Contacts:
                 info["action"] = None  # out of budget: pybullet's, from here on
             if back and info["action"] == "back":
                 self._report(paths, i, j, info, True, events)
+                self.struck = {int(paths.frame[i]), int(paths.frame[j])}
                 return tau_r
             changed = self._act(paths, i, j, tau_r, info, user_moved)
             self._report(paths, i, j, info, bool(changed), events)

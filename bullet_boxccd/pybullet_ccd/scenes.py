@@ -159,7 +159,7 @@ def run_trial(world, cfg, seed, window, ccd):
             i = moving[0]
             if i not in first:
                 first[i] = s * DT + ev.time
-            if ev.rewound:
+            if ev.rewound and ccd is not None and ccd.max_partial_steps == 0:  # the step ends at the contact
                 d = min_dist(cid, ev.body_a, ev.body_b, 0.01, ev.link_a, ev.link_b)
                 pose.append(0.01 if d is None else d)  # nothing within 1 cm: at least 1 cm off
         for i, b in enumerate(proj):

@@ -20,7 +20,7 @@ import numpy as np
 
 from .. import _core
 from ._hooks import raw
-from .layout import POSE
+from .layout import POSE, TWIST
 from .world import STATIC
 
 __all__ = ["FrameState"]
@@ -64,6 +64,13 @@ class FrameState:
         self.kinematic = []  # static frames the user moved before the current step, or that have a velocity
         self.pose0 = {}  # kinematic frame -> its pose before the current step (E0)
         self.jumps = {}  # kinematic frame -> (E0, P1): it jumped before the step
+        self.twist0 = None  # (F, 6) every frame's velocities when the (partial) step began, if known
+
+    def begin(self, known):
+        """Before a (partial) step: keep the velocities it starts from, where ``rows`` holds
+        them (``known``: they were read after the last step, or set since, and the user
+        changed nothing in between)."""
+        self.twist0 = self.rows[:, TWIST].copy() if known else None
 
     def twists(self) -> list:
         """pybullet's velocity reads of the moving frames, as they come."""

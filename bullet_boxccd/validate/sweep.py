@@ -11,7 +11,8 @@ documents (its module docstring defines every metric):
 * ``tunnel``: the projectiles that ended through the wall or under the ground,
 * ``first``: per projectile, the time of its first CCD event against the ground or wall
   that begins inside a step (BoxCCD configurations),
-* ``pose``: ``getClosestPoints`` distance right after each rewound first touch,
+* ``pose``: ``getClosestPoints`` distance right after each rewound first touch (where
+  the step ends there: ``max_partial_steps=0``),
 * ``deepest``: the deepest end-of-step penetration of a projectile into the ground or wall,
 * ``stats``: the BoxCCD counters the table uses (solver rows, candidate pairs, swept
   boxes, steps, rewinds).
@@ -41,7 +42,8 @@ __all__ = ["DEFAULT", "configs", "task", "sweep", "aggregate", "write_outputs", 
 MARGIN = 0.001  # pybullet's collision margin for boxes
 BAND = (-1e-6, MARGIN + 1e-6)  # where a rewound first touch should put the pair
 REF_FIT = 1e-4  # fit_tolerance of the reference run (contact times are compared with it)
-DEFAULT = dict(sweep_threshold=0.25, fit_tolerance=0.05, penetration=2e-7, exact_time=False)
+DEFAULT = dict(sweep_threshold=0.25, fit_tolerance=0.05, penetration=1e-5, depth_tolerance=1e-3,
+               max_partial_steps=8)
 WORLD = {"ccd": "multibody", "ref": "multibody", "plain": "multibody", "maximal": "maximal", "native": "native"}
 
 
@@ -52,9 +54,12 @@ def configs(quick):
         out.append((f"sweep_threshold={s:g}", "ccd", dict(sweep_threshold=s)))
     for f in (0.005, 0.5):
         out.append((f"fit_tolerance={f:g}", "ccd", dict(fit_tolerance=f)))
-    for d in (2e-8, 2e-6):
+    for d in (1e-6, 1e-4):
         out.append((f"penetration={d:g}", "ccd", dict(penetration=d)))
-    out.append(("exact_time", "ccd", dict(exact_time=True)))
+    for d in (1e-4, 1e-2):
+        out.append((f"depth_tolerance={d:g}", "ccd", dict(depth_tolerance=d)))
+    for k in (0, 2):
+        out.append((f"max_partial_steps={k}", "ccd", dict(max_partial_steps=k)))
     out.append((f"reference (fit_tolerance={REF_FIT:g})", "ref", dict(fit_tolerance=REF_FIT)))
     out.append(("plain", "plain", 0))
     for k in ((2, 8, 32) if quick else (2, 4, 8, 16, 32)):
