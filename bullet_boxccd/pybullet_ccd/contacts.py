@@ -215,26 +215,35 @@ class Contacts:
         step less the rest of the step's gravity (as does any whose velocity before the
         step is not known)."""
         track = paths.track if paths is not None else {}
-        carried = {f for f, tr in track.items() if tr.status == _CARRIED}
-        free = [f for f in np.flatnonzero(tables.kind == FREE).tolist() if f not in carried]
-        moving = free + [f for f in state.with_velocity if f in state.kinematic]
-        state.read_poses(state.stale(moving))
-        for f in moving:
-            if f in track:
-                pose, (v, w) = pose7(paths.com(f, tau)), paths.twist(f)
-            else:
-                pose = _core.frame_poses(state.rows, dt, np.array([f], dtype=np.int64), np.array([tau]))[0]
-                v, w = state.rows[f, VELOCITY].copy(), state.rows[f, ANGULAR_VELOCITY].copy()
-            if tables.kind[f] == FREE:
-                if state.twist0 is not None and f not in struck:
-                    v0, w0 = state.twist0[f, :3], state.twist0[f, 3:]
-                    v, w = v0 + tau * (v - v0), w0 + tau * (w - w0)
-                else:
-                    v = v - gravity * (1.0 - tau) * dt
-            place(self.cid, tables, state, f, pose, v, w)
+        carried = [f for f, tr in track.items() if tr.status == _CARRIED]
+        # In a time order that stops at its first action no other path changed: each frame
+        # is on Bullet's path (a fixed base the user gave a velocity too).
+        frames = np.flatnonzero(tables.kind == FREE)
+        frames = np.concatenate([frames[~np.isin(frames, carried)],
+                                 [f for f in state.with_velocity if f in state.kinematic]]).astype(np.int64)
+        rows = state.rows[frames]
+        v, w = rows[:, VELOCITY].copy(), rows[:, ANGULAR_VELOCITY].copy()
+        free = tables.kind[frames] == FREE
+        if state.twist0 is not None:
+            known = free & ~np.isin(frames, list(struck))
+            v0, w0 = state.twist0[frames, :3], state.twist0[frames, 3:]
+            v[known] = v0[known] + tau * (v[known] - v0[known])
+            w[known] = w0[known] + tau * (w[known] - w0[known])
+            still = ~(rows[:, VELOCITY].any(axis=1) | rows[:, ANGULAR_VELOCITY].any(axis=1) |
+                      state.twist0[frames].any(axis=1))
+        else:
+            known, still = np.zeros(len(frames), bool), np.zeros(len(frames), bool)
+        v[free & ~known] -= gravity * (1.0 - tau) * dt
+        # A body standing still before and after the step stays where it is (placing it
+        # would wake a sleeping one).
+        frames, v, w = frames[~still], v[~still], w[~still]
+        state.read_poses(state.stale(frames.tolist()))
+        poses = _core.frame_poses(state.rows, dt, frames, np.full(len(frames), tau))
+        for f, pose, vf, wf in zip(frames.tolist(), poses, v, w):
+            place(self.cid, tables, state, f, pose, vf, wf)
         for f in carried:
-            v, w = paths.twist(f)
-            place(self.cid, tables, state, f, pose7(paths.com(f, 1.0)), v, w)
+            vf, wf = paths.twist(f)
+            place(self.cid, tables, state, f, pose7(paths.com(f, 1.0)), vf, wf)
 
     # -------------------------------------------------------- time order
     def _time_order(self, paths, sw, user_moved, events, back, horizon):
