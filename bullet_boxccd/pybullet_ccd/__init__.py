@@ -197,22 +197,20 @@ class BoxCCD:
             self.stats.steps += 1
         self._quiet = self._substeps == 1 and not self._state.with_velocity
         self._epoch = last_serial()
+        self.world.journal.impulses.clear()  # pybullet cleared them
         return events
 
     def _full_step(self):
         self._sync()
         dt, n = self._dt, self._substeps
-        impulses = self.world.journal.impulses
         if n == 1:
-            events = self._step(dt, 0.0, dt)
-        else:
-            events = []
-            with self._substepping(dt, n):
-                for k in range(n):
-                    if k:  # pybullet cleared the user's forces after the last substep
-                        replay_impulses(self.cid, impulses)
-                    events += self._step(dt / n, k * dt / n, dt)
-        impulses.clear()
+            return self._step(dt, 0.0, dt)
+        events = []
+        with self._substepping(dt, n):
+            for k in range(n):
+                if k:  # pybullet cleared the user's forces after the last substep
+                    replay_impulses(self.cid, self.world.journal.impulses)
+                events += self._step(dt / n, k * dt / n, dt)
         return events
 
     @contextmanager
@@ -254,6 +252,7 @@ class BoxCCD:
                 piece = h - elapsed if k + 1 == self.max_partial_steps else self._piece(h - elapsed)
                 self.stats.partial_steps += 1
                 raw.setPhysicsEngineParameter(fixedTimeStep=piece, physicsClientId=self.cid)
+                replay_impulses(self.cid, self.world.journal.impulses)  # pybullet cleared the user's forces
                 t_start = time.perf_counter()
         finally:
             if piece != h:
@@ -321,7 +320,7 @@ class BoxCCD:
             return []
         t0 = time.perf_counter()
         found = self._chains.find(h, self._state, self._sweep_reach, self.fit_tolerance, self.tolerances,
-                                  self.penetration, self.depth_tolerance, self.stats)
+                                  self.penetration, self.stats)
         self.stats.seconds["solve"] += time.perf_counter() - t0
         return found
 

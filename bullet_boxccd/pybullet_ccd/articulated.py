@@ -136,7 +136,7 @@ class Articulated:
         return path
 
     # ------------------------------------------------------------ sweeping
-    def find(self, dt, state, sweep_reach, fit_tolerance, tolerances, penetration, depth_tolerance, stats):
+    def find(self, dt, state, sweep_reach, fit_tolerance, tolerances, penetration, stats):
         """Sweep the fast link boxes. Returns their contacts in time order: [(touch, act at
         (None: pybullet's to resolve), (point, normal, feature), initial, pressing, body
         record, frame, partner frame, (path, partner path))]."""
@@ -167,7 +167,7 @@ class Articulated:
                 other = self._partner(j, g, state, dt, cache)
                 if j not in linked and not _meet(box, other.bounds(1).tolist()):
                     continue  # their swept bounds do not meet
-                hit = self._judge(path, other, fit_tolerance, tolerances, penetration, depth_tolerance, stats)
+                hit = self._judge(path, other, fit_tolerance, tolerances, penetration, stats)
                 if hit is not None:
                     found.append((*hit, rec, f, g, (path, other)))
         found.sort(key=lambda x: x[0])
@@ -266,7 +266,7 @@ class Articulated:
             cache[("row", j)] = _core.RowBoxPath(row)
         return cache[("row", j)]
 
-    def _judge(self, a, b, fit_tolerance, tolerances, penetration, depth_tolerance, stats):
+    def _judge(self, a, b, fit_tolerance, tolerances, penetration, stats):
         """(touch, act at or None, (point, normal, feature), initial, pressing: touching or
         all but when the step began) of a pair of paths, or None if they stay apart."""
         touch, solves, c = _core.paths_contact(a, b, fit_tolerance, tolerances._core)
@@ -279,13 +279,14 @@ class Articulated:
         initial = d0 >= 0.0
         thin = min(a.half_extents.min(), b.half_extents.min())
         # A pair touching, or all but, when the step began was in pybullet's contact solve
-        # (its contacts reach a little beyond the touch): acted on only if it presses in by
-        # more than a creep (up to depth_tolerance) or ends where pybullet resolves it
-        # wrongly; a pair that met inside the step, also when it ends deeper than
-        # depth_tolerance.
+        # (its contacts reach a little beyond the touch): acted on, from the time it presses
+        # in by more than a creep, only if it ends where pybullet resolves it wrongly; a
+        # pair that met inside the step, from its touch. A link's contact that ends merely
+        # deep is pybullet's: its motors and joints press links into what they touch, and
+        # pybullet's solver resolves that as it always does.
         creep = CREEP * thin
         pressing = d0 > -creep
-        target = max(d0, 0.0) + max(penetration, min(creep, depth_tolerance)) if pressing else penetration
+        target = max(d0, 0.0) + max(penetration, creep) if pressing else penetration
         act = float(_core.paths_first_depth(a, b, touch, target))
         if c.feature is not None:
             contact = (c.point, c.normal, c.feature)
@@ -293,8 +294,7 @@ class Articulated:
             _, n = _core.paths_separation(a, b, touch)
             Xa, Xb = a.pose(touch), b.pose(touch)
             contact = (0.5 * (Xa[:3, 3] + Xb[:3, 3]), n, None)
-        deep = float(_core.paths_depth(a, b, 1.0)) > (target if pressing else depth_tolerance)
-        if math.isnan(act) or not (deep or _goes_wrong(a, b, act)):
+        if math.isnan(act) or not _goes_wrong(a, b, act):
             act = None
         return touch, act, contact, initial, pressing
 

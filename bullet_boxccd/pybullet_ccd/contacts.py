@@ -336,15 +336,16 @@ class Contacts:
         end_depth = float(_core.path_depth(w, np.ones(1))[0])
         if initial:
             # Touching as the window began: pybullet's solver saw it. Acted on only if it
-            # presses in by more than a creep (a box pivoting on a corner sinks that corner
-            # slowly), up to depth_tolerance: the next corner of a turning box striking, or
-            # a body driven through.
+            # ends deeper by more than depth_tolerance (the next corner of a turning box
+            # striking, or a body driven through), from the time it presses in by more than
+            # a creep (a box pivoting on a corner sinks that corner slowly).
             thin = min(w[0, PATH_ROW["half_extents"]].min(), w[1, PATH_ROW["half_extents"]].min())
             d0 = float(_core.path_depth(w, np.zeros(1))[0])
             target = max(d0, 0.0) + max(self.penetration, min(CREEP * thin, self.depth_tolerance))
         else:
             target = self.penetration
-        wrong = _goes_wrong(w, s_touch, c, target) or end_depth > (target if initial else self.depth_tolerance)
+        deeper = end_depth - (max(d0, 0.0) if initial else 0.0)
+        wrong = deeper > self.depth_tolerance or _goes_wrong(w, s_touch, c, target)
         if action != "push" and not wrong:
             return info
         s_act = _core.first_depth(w, s_touch, target)
