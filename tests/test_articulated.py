@@ -145,9 +145,16 @@ def test_fast_box_never_passes_a_resting_arm_link(cid):
         p.resetBaseVelocity(cube, [rng.uniform(80, 150), 0, 0], rng.uniform(-20, 20, 3).tolist(),
                             physicsClientId=cid)
         ccd = BoxCCD(cid) if use_ccd else None
+        (lo, hi), through = p.getAABB(arm, 0, physicsClientId=cid), False
+        before = np.array(p.getBasePositionAndOrientation(cube, physicsClientId=cid)[0])
         for _ in range(20):
             ccd.step() if ccd else p.stepSimulation(physicsClientId=cid)
-        return p.getBasePositionAndOrientation(cube, physicsClientId=cid)[0][0] > 0.0
+            after = np.array(p.getBasePositionAndOrientation(cube, physicsClientId=cid)[0])
+            if before[0] < 0.0 <= after[0]:  # where the centre crossed the bar's plane: within the bar?
+                c = before + (after - before) * (-before[0] / (after[0] - before[0]))
+                through |= bool(lo[1] - 0.02 <= c[1] <= hi[1] + 0.02 and lo[2] - 0.02 <= c[2] <= hi[2] + 0.02)
+            before = after
+        return through
 
     assert sum(run(False, s) for s in range(8)) >= 6
     assert sum(run(True, s) for s in range(8)) == 0
