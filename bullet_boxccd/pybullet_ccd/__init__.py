@@ -114,7 +114,8 @@ class BoxCCD:
         self._warn = warn_once(self._warned)
         if self.sweep_threshold > 1.0:
             self._warn(("sweep_threshold",), f"sweep_threshold = {self.sweep_threshold:g}: a box that moves less "
-                                             "than that many extents a step is not swept, and can skip a wall")
+                                             "than that many of its extents (and less than sweep_distance) a step "
+                                             "is not swept, and can skip a wall thinner than its move")
         bodies = _bodies(self.cid, self_collision_bodies, "self_collision_bodies")
         self.world = World(self.cid, bodies, self._warn)
         self.contacts = Contacts(self.cid, self.penetration, self.depth_tolerance, self.fit_tolerance,
