@@ -59,8 +59,14 @@ def __getattr__(name):
     raise AttributeError(f"module 'bullet_boxccd' has no attribute {name!r}")
 
 
-# A script that imported pybullet first gets the adapter now: importing it starts the
-# journal of pybullet's world changes (filters, removals, teleports) that BoxCCD reads,
-# so a world built before BoxCCD(...) is made is still seen whole.
+# The journal of pybullet's world changes (filters, removals, teleports) that BoxCCD
+# reads starts when the adapter is imported, so it must be in place before the world is
+# built, whichever of bullet_boxccd and pybullet is imported first: now if pybullet is
+# already imported, else when it is (an import hook; importing the adapter with
+# bullet_boxccd would cost a script that only wants the solver ~40 ms and pybullet).
 if "pybullet" in _sys.modules:
     from . import pybullet_ccd  # noqa: E402, F401
+else:
+    from ._import_hook import watch_for_pybullet as _watch  # noqa: E402
+
+    _watch()

@@ -380,7 +380,7 @@ def test_substeps_are_each_swept(cid, substeps):
     dict(sweep_threshold=float("nan")), dict(sweep_threshold=-0.1), dict(sweep_threshold=float("inf")),
     dict(fit_tolerance=0.0), dict(fit_tolerance=2.0), dict(penetration=1.0), dict(penetration=0.0),
     dict(penetration=float("nan")), dict(max_partial_steps=-1), dict(max_partial_steps=2.5),
-    dict(exact_time="yes"), dict(self_collision_bodies=[999]), dict(tolerances=1e-12),
+    dict(depth_tolerance=-1.0), dict(depth_tolerance=float("nan")), dict(self_collision_bodies=[999]), dict(tolerances=1e-12),
 ])
 def test_bad_arguments_raise_naming_argument_and_value(cid, kwargs):
     reset(cid)
@@ -426,11 +426,11 @@ def test_a_world_time_step_that_is_not_a_positive_number_is_an_error_at_step(cid
         ccd.step()
 
 
-def test_max_partial_steps_zero_with_exact_time_still_steps(cid):
+def test_max_partial_steps_zero_still_steps(cid):
     reset(cid)
     cube = box(cid, [0.1] * 3, [0, 0, 0])
     p.resetBaseVelocity(cube, [1, 0, 0], [0, 0, 0], physicsClientId=cid)
-    ccd = BoxCCD(cid, exact_time=True, max_partial_steps=0)
+    ccd = BoxCCD(cid, max_partial_steps=0)
     for _ in range(10):
         ccd.step()
     assert x_of(cid, cube) > 0.04

@@ -12,6 +12,11 @@ client. The wrappers are builtins (``_core.as_builtin``): pybullet_utils'
 The plugin itself calls pybullet's originals (``raw``): its own rewinds and partial
 steps are not user changes.
 
+A wrapper reads its call's arguments as pybullet does, from one table (``SIGNATURES``:
+each function's parameter lists in the order pybullet tries them, legacy forms such as
+``loadURDF(file, x, y, z)`` included), positional, keyword or mixed, with
+``physicsClientId`` wherever pybullet accepts it.
+
 Limits (BoxCCD warns where it meets them): calls made through references to
 pybullet's functions taken before this package was imported (``from pybullet import
 setCollisionFilterPair`` first) are not seen, nor changes made by another process
@@ -31,7 +36,7 @@ import pybullet
 from .. import _core
 
 __all__ = ["Journal", "journal", "raw", "install", "new_serial", "last_serial", "replay_impulses", "WRAPPED",
-           "OR_MODE"]
+           "SIGNATURES", "bind", "shape_type", "MjcfLoad", "OR_MODE"]
 
 # pybullet's defaults (PhysicsServerCommandProcessor): collisionFilterMode 1 ("group A
 # & mask B, OR group B & mask A"); a new world starts with it.
@@ -106,6 +111,12 @@ class Journal:
     # Body -> the URDF_USE_SELF_COLLISION* bits it was loaded with (loadURDF, loadMJCF,
     # createMultiBody flags): whether, and which, of its links collide with each other.
     self_collision: dict = field(default_factory=dict)
+    # Body -> the loadMJCF call that made it (MjcfLoad): pybullet's getCollisionShapeData can
+    # kill the process on such bodies, so their boxes are read from the file (mjcf.py).
+    mjcf: dict = field(default_factory=dict)
+    # Body -> {link: GEOM_* type} of the shapes createMultiBody gave it, where the journal
+    # saw them made (createCollisionShape).
+    link_geometry: dict = field(default_factory=dict)
 
     def clear(self):
         fresh = Journal()
@@ -133,71 +144,204 @@ def pair_rule_key(body_a, link_a, body_b, link_b):
 
 
 # --------------------------------------------------------------- arguments
-def _arg(args, kwargs, i, name, default=None):
-    """Argument ``name`` at position ``i`` as pybullet parses it."""
-    return args[i] if len(args) > i else kwargs.get(name, default)
+class Form(tuple):
+    """One parameter list pybullet's ``PyArg_ParseTupleAndKeywords`` tries for a function:
+    its names in order (pybullet.c's ``kwlist``), the first ``required`` of which must be
+    given, and the ``numbers`` it parses as floats (a call whose value there is no number
+    does not take this form)."""
+
+    def __new__(cls, names, required=0, numbers=()):
+        self = super().__new__(cls, names)
+        self.required = required
+        self.numbers = frozenset(numbers)
+        self.position = {n: i for i, n in enumerate(names)}
+        return self
 
 
-def _cid(args, kwargs, i):
-    return int(_arg(args, kwargs, i, "physicsClientId", 0))
+_LOAD_URDF_LEGACY4 = Form(("fileName", "startPosX", "startPosY", "startPosZ"), 4,
+                          ("startPosX", "startPosY", "startPosZ"))
+_LOAD_URDF_LEGACY8 = Form(("fileName", "startPosX", "startPosY", "startPosZ", "startOrnX", "startOrnY", "startOrnZ",
+                           "startOrnW"), 8, ("startPosX", "startPosY", "startPosZ", "startOrnX", "startOrnY",
+                                             "startOrnZ", "startOrnW"))
+_MOTOR2 = ("jointIndex", "controlMode", "targetPosition", "targetVelocity", "force", "positionGain", "velocityGain",
+           "maxVelocity", "physicsClientId")
+_MOTOR_ARRAY = ("jointIndices", "controlMode", "targetPositions", "targetVelocities", "forces", "positionGains",
+                "velocityGains", "physicsClientId")
+
+# Every hooked function's parameter lists, in the order pybullet tries them (pybullet.c,
+# 3.2.x): the one table the wrappers read their arguments from (tests/test_hooks.py checks
+# it against pybullet itself). A legacy form comes first where pybullet tries it first:
+# ``loadURDF(file, x, y, z)`` and ``loadURDF(file, x, y, z, qx, qy, qz, qw)`` (no client id:
+# they always load into client 0); ``bodyIndex`` is the old name of ``bodyUniqueId``.
+SIGNATURES = {
+    "resetSimulation": (Form(("flags", "physicsClientId")),),
+    "createMultiBody": (Form(("baseMass", "baseCollisionShapeIndex", "baseVisualShapeIndex", "basePosition",
+                              "baseOrientation", "baseInertialFramePosition", "baseInertialFrameOrientation",
+                              "linkMasses", "linkCollisionShapeIndices", "linkVisualShapeIndices", "linkPositions",
+                              "linkOrientations", "linkInertialFramePositions", "linkInertialFrameOrientations",
+                              "linkParentIndices", "linkJointTypes", "linkJointAxis", "useMaximalCoordinates", "flags",
+                              "batchPositions", "physicsClientId")),),
+    "loadURDF": (_LOAD_URDF_LEGACY4, _LOAD_URDF_LEGACY8,
+                 Form(("fileName", "basePosition", "baseOrientation", "useMaximalCoordinates", "useFixedBase", "flags",
+                       "globalScaling", "physicsClientId"), 1)),
+    "loadSDF": (Form(("sdfFileName", "useMaximalCoordinates", "globalScaling", "physicsClientId"), 1),),
+    "loadMJCF": (Form(("mjcfFileName", "flags", "useMultiBody", "physicsClientId"), 1),),
+    "loadBullet": (Form(("bulletFileName", "physicsClientId"), 1),),
+    "loadSoftBody": (Form(("fileName", "basePosition", "baseOrientation", "scale", "mass", "collisionMargin",
+                           "useMassSpring", "useBendingSprings", "useNeoHookean", "springElasticStiffness",
+                           "springDampingStiffness", "springDampingAllDirections", "springBendingStiffness",
+                           "NeoHookeanMu", "NeoHookeanLambda", "NeoHookeanDamping", "frictionCoeff", "useFaceContact",
+                           "useSelfCollision", "repulsionStiffness", "simFileName", "physicsClientId"), 1),),
+    "removeBody": (Form(("bodyUniqueId", "physicsClientId"), 1),),
+    "createCollisionShape": (Form(("shapeType", "radius", "halfExtents", "height", "fileName", "meshScale",
+                                   "planeNormal", "flags", "collisionFramePosition", "collisionFrameOrientation",
+                                   "vertices", "indices", "heightfieldTextureScaling", "heightfieldData",
+                                   "numHeightfieldRows", "numHeightfieldColumns", "replaceHeightfieldIndex",
+                                   "physicsClientId"), 1),),
+    "createCollisionShapeArray": (Form(("shapeTypes", "radii", "halfExtents", "lengths", "fileNames", "meshScales",
+                                        "planeNormals", "flags", "collisionFramePositions",
+                                        "collisionFrameOrientations", "physicsClientId"), 1),),
+    "removeCollisionShape": (Form(("collisionShapeId", "physicsClientId"), 1),),
+    "changeDynamics": (Form(("bodyUniqueId", "linkIndex", "mass", "lateralFriction", "spinningFriction",
+                             "rollingFriction", "restitution", "linearDamping", "angularDamping", "contactStiffness",
+                             "contactDamping", "frictionAnchor", "localInertiaDiagonal", "ccdSweptSphereRadius",
+                             "contactProcessingThreshold", "activationState", "jointDamping", "anisotropicFriction",
+                             "maxJointVelocity", "collisionMargin", "jointLowerLimit", "jointUpperLimit",
+                             "jointLimitForce", "sleepThreshold", "physicsClientId"), 2),),
+    "unsupportedChangeScaling": (Form(("bodyUniqueId", "scaling", "physicsClientId"), 2),),
+    "setCollisionFilterPair": (Form(("bodyUniqueIdA", "bodyUniqueIdB", "linkIndexA", "linkIndexB", "enableCollision",
+                                     "physicsClientId"), 5),),
+    "setCollisionFilterGroupMask": (Form(("bodyUniqueId", "linkIndexA", "collisionFilterGroup", "collisionFilterMask",
+                                          "physicsClientId"), 4),),
+    "setPhysicsEngineParameter": (Form(("fixedTimeStep", "numSolverIterations", "useSplitImpulse",
+                                        "splitImpulsePenetrationThreshold", "numSubSteps", "collisionFilterMode",
+                                        "contactBreakingThreshold", "maxNumCmdPer1ms", "enableFileCaching",
+                                        "restitutionVelocityThreshold", "erp", "contactERP", "frictionERP",
+                                        "enableConeFriction", "deterministicOverlappingPairs", "allowedCcdPenetration",
+                                        "jointFeedbackMode", "solverResidualThreshold", "contactSlop", "enableSAT",
+                                        "constraintSolverType", "globalCFM", "minimumSolverIslandSize",
+                                        "reportSolverAnalytics", "warmStartingFactor", "sparseSdfVoxelSize",
+                                        "numNonContactInnerIterations", "physicsClientId")),),
+    "setTimeStep": (Form(("timeStep", "physicsClientId"), 1),),
+    "setGravity": (Form(("gravX", "gravY", "gravZ", "physicsClientId"), 3),),
+    "resetBasePositionAndOrientation": (Form(("bodyUniqueId", "posObj", "ornObj", "physicsClientId"), 3),),
+    "resetBaseVelocity": (Form(("objectUniqueId", "linearVelocity", "angularVelocity", "physicsClientId"), 1),),
+    "resetJointState": (Form(("bodyUniqueId", "jointIndex", "targetValue", "targetVelocity", "physicsClientId"), 3),),
+    "resetJointStateMultiDof": (Form(("bodyUniqueId", "jointIndex", "targetValue", "targetVelocity",
+                                      "physicsClientId"), 3),),
+    "resetJointStatesMultiDof": (Form(("bodyUniqueId", "jointIndices", "targetValues", "targetVelocities",
+                                       "physicsClientId"), 3),),
+    "restoreState": (Form(("stateId", "fileName", "physicsClientId")),),
+    "stepSimulation": (Form(("physicsClientId",)),),
+    "setAdditionalSearchPath": (Form(("path", "physicsClientId"), 1),),
+    "applyExternalForce": (Form(("objectUniqueId", "linkIndex", "forceObj", "posObj", "flags", "physicsClientId"), 5),),
+    "applyExternalTorque": (Form(("objectUniqueId", "linkIndex", "torqueObj", "flags", "physicsClientId"), 4),),
+    "setJointMotorControl2": (Form(("bodyUniqueId",) + _MOTOR2, 3), Form(("bodyIndex",) + _MOTOR2, 3)),
+    "setJointMotorControlArray": (Form(("bodyUniqueId",) + _MOTOR_ARRAY, 3), Form(("bodyIndex",) + _MOTOR_ARRAY, 3)),
+    "setJointMotorControlMultiDof": (Form(("bodyUniqueId", "jointIndex", "controlMode", "targetPosition",
+                                           "targetVelocity", "force", "positionGain", "velocityGain", "maxVelocity",
+                                           "damping", "physicsClientId"), 3),),
+    "setJointMotorControlMultiDofArray": (Form(("bodyUniqueId", "jointIndices", "controlMode", "targetPositions",
+                                                "targetVelocities", "forces", "positionGains", "velocityGains",
+                                                "maxVelocities", "physicsClientId"), 3),),
+}
+_ALIASES = {"bodyIndex": "bodyUniqueId"}
 
 
-def _named(names, args, kwargs):
-    """The call's arguments by name (pybullet's keyword names), without the client id."""
-    out = dict(zip(names, args))
-    out.update(kwargs)
-    out.pop("physicsClientId", None)
+def _is_number(x) -> bool:
+    """Whether pybullet's "d" format takes x (PyFloat_AsDouble: __float__ or __index__)."""
+    t = type(x)
+    return hasattr(t, "__float__") or hasattr(t, "__index__")
+
+
+def _fits(form, args, kwargs) -> bool:
+    """Whether pybullet's parser takes a call with this form."""
+    n, position = len(args), form.position
+    if n > len(form):
+        return False
+    for k in kwargs:  # (loops, not generators: this runs on every hooked call)
+        if position.get(k, -1) < n:
+            return False
+    for name in form[n:form.required]:
+        if name not in kwargs:
+            return False
+    if form.numbers:
+        values = dict(zip(form, args), **kwargs)
+        return all(_is_number(values[k]) for k in form.numbers if k in values)
+    return True
+
+
+def bind(name, args, kwargs) -> dict:
+    """The arguments of a call of pybullet's ``name`` by parameter name, as pybullet bound
+    them (the first form of ``SIGNATURES[name]`` the call fits; the last one if none
+    does), old names given their new ones; ``physicsClientId`` only where it was given."""
+    forms = SIGNATURES[name]
+    form = forms[-1]
+    if len(forms) > 1:
+        for f in forms:
+            if _fits(f, args, kwargs):
+                form = f
+                break
+    out = dict(zip(form, args))
+    if kwargs:
+        out.update(kwargs)
+        for old, new in _ALIASES.items():
+            if old in out:
+                out[new] = out.pop(old)
     return out
 
 
-_CREATE_SHAPE = ("shapeType", "radius", "halfExtents", "height", "fileName", "meshScale", "planeNormal", "flags",
-                 "collisionFramePosition", "collisionFrameOrientation", "vertices", "indices",
-                 "heightfieldTextureScaling", "heightfieldData", "numHeightfieldRows", "numHeightfieldColumns",
-                 "replaceHeightfieldIndex")
-_CREATE_SHAPES = ("shapeTypes", "radii", "halfExtents", "lengths", "fileNames", "meshScales", "planeNormals", "flags",
-                  "collisionFramePositions", "collisionFrameOrientations")
-_CREATE_BODY = ("baseMass", "baseCollisionShapeIndex", "baseVisualShapeIndex", "basePosition", "baseOrientation",
-                "baseInertialFramePosition", "baseInertialFrameOrientation", "linkMasses",
-                "linkCollisionShapeIndices", "linkVisualShapeIndices", "linkPositions", "linkOrientations",
-                "linkInertialFramePositions", "linkInertialFrameOrientations", "linkParentIndices", "linkJointTypes",
-                "linkJointAxis", "useMaximalCoordinates", "flags", "batchPositions")
-_LOAD_URDF = ("fileName", "basePosition", "baseOrientation", "useMaximalCoordinates", "useFixedBase", "flags",
-              "globalScaling")
-_LOAD_SDF = ("sdfFileName", "useMaximalCoordinates", "globalScaling")
+def _cid(a) -> int:
+    return int(a.get("physicsClientId", 0))
+
+
+def _named(a):
+    """The bound arguments without the client id (to make the same call in another client)."""
+    return {k: v for k, v in a.items() if k != "physicsClientId"}
 
 
 # ------------------------------------------------------------------ events
+# Each takes (client, the call's arguments by name (``bind``), pybullet's result).
 def _structure(cid, body):
     j = journal(cid)
     j.bodies[int(body)] = j.last_body = next(_serial)
     return j
 
 
-def _on_create(cid, result):
-    j = journal(cid)
-    ids = result if isinstance(result, (tuple, list)) else (result,)
-    s = j.last_body = next(_serial)
-    for b in ids:
-        if isinstance(b, int) and b >= 0:
-            j.bodies[b] = s
-            j.created.add(b)
-            j.group_mask = {k: v for k, v in j.group_mask.items() if k[0] != b}
-    return j
-
-
-def _remove_body(args, kwargs, result):
-    cid, b = _cid(args, kwargs, 1), int(_arg(args, kwargs, 0, "bodyUniqueId"))
-    j = _structure(cid, b)
-    j.created.discard(b)
+def _forget(j, b):
+    """What the journal knew of a body id that was removed or made anew."""
     j.group_mask = {k: v for k, v in j.group_mask.items() if k[0] != b}  # they lived on its broadphase proxies
     j.file_group_mask.pop(b, None)
     j.filters_unknown.pop(b, None)
     j.maximal.pop(b, None)
+    j.mjcf.pop(b, None)
+    j.link_geometry.pop(b, None)
+
+
+def _ids(result):
+    return [b for b in (result if isinstance(result, (tuple, list)) else (result,)) if isinstance(b, int) and b >= 0]
+
+
+def _on_create(cid, result):
+    j = journal(cid)
+    s = j.last_body = next(_serial)
+    for b in _ids(result):
+        j.bodies[b] = s
+        j.created.add(b)
+        _forget(j, b)
+    return j
+
+
+def _remove_body(cid, a, result):
+    b = int(a["bodyUniqueId"])
+    j = _structure(cid, b)
+    j.created.discard(b)
+    _forget(j, b)
     j.filters = next(_serial)  # pair rules stay: pybullet keys them by id, and a new body may reuse it
 
 
-def _reset_simulation(args, kwargs, result):
-    journal(_cid(args, kwargs, 1)).clear()
+def _reset_simulation(cid, a, result):
+    journal(cid).clear()
 
 
 def _note_maximal(j, name, named, result, flag="useMaximalCoordinates"):
@@ -207,163 +351,198 @@ def _note_maximal(j, name, named, result, flag="useMaximalCoordinates"):
             j.maximal[b] = (name, named, i)
 
 
-def _create_shape(name, names, i_cid):
-    def on(args, kwargs, result):
-        journal(_cid(args, kwargs, i_cid)).shapes[result] = (name, _named(names, args, kwargs))
+def _create_shape(name):
+    def on(cid, a, result):
+        journal(cid).shapes[result] = (name, _named(a))
     return on
 
 
-def _remove_shape(args, kwargs, result):
-    journal(_cid(args, kwargs, 1)).shapes.pop(_arg(args, kwargs, 0, "collisionShapeId"), None)
+def _remove_shape(cid, a, result):
+    journal(cid).shapes.pop(a.get("collisionShapeId"), None)
 
 
 def _note_self_collision(j, flags, result):
     bits = int(flags or 0) & _SELF_COLLISION_BITS
-    for b in result if isinstance(result, (tuple, list)) else (result,):
-        if isinstance(b, int) and b >= 0:
-            j.self_collision.pop(b, None)
-            if bits & pybullet.URDF_USE_SELF_COLLISION:
-                j.self_collision[b] = bits
+    for b in _ids(result):
+        j.self_collision.pop(b, None)
+        if bits & pybullet.URDF_USE_SELF_COLLISION:
+            j.self_collision[b] = bits
 
 
 _SELF_COLLISION_BITS = (pybullet.URDF_USE_SELF_COLLISION | pybullet.URDF_USE_SELF_COLLISION_INCLUDE_PARENT |
                         pybullet.URDF_USE_SELF_COLLISION_EXCLUDE_ALL_PARENTS)
 
 
-def _create_multibody(args, kwargs, result):
-    j = _on_create(_cid(args, kwargs, 20), result)
-    named = _named(_CREATE_BODY, args, kwargs)
+def shape_type(j, index):
+    """The GEOM_* type of a collision shape the journal saw being made by
+    createCollisionShape, or None."""
+    made = j.shapes.get(index)
+    if made is None or made[0] != "createCollisionShape":
+        return None
+    try:
+        return int(made[1].get("shapeType"))
+    except (TypeError, ValueError):
+        return None
+
+
+def _create_multibody(cid, a, result):
+    j = _on_create(cid, result)
+    named = _named(a)
     _note_maximal(j, "createMultiBody", named, result)
     _note_self_collision(j, named.get("flags"), result)
+    # The geometry type of each link's shape, where the journal made it: pybullet prints an
+    # error for a heightfield's getCollisionShapeData, which BoxCCD then does not call.
+    shapes = {-1: named.get("baseCollisionShapeIndex", -1)}
+    try:
+        shapes.update(enumerate(named.get("linkCollisionShapeIndices") or ()))
+    except TypeError:
+        pass
+    kinds = {}
+    for link, index in shapes.items():
+        try:
+            kind = shape_type(j, int(index))
+        except (TypeError, ValueError):
+            kind = None
+        if kind is not None:
+            kinds[link] = kind
+    for b in _ids(result):
+        j.link_geometry[b] = kinds
 
 
-def _load_file(name, names, file_arg, i_cid, args, kwargs, result):
+def _load_file(name, file_arg, cid, a, result):
     """The journal's record of a body loaded from a file: (journal, named arguments with the
     file as an absolute path, that path or None if it cannot be found)."""
-    j = _on_create(_cid(args, kwargs, i_cid), result)
-    named = _named(names, args, kwargs)
-    path = _resolve(j, named[file_arg])
+    j = _on_create(cid, result)
+    named = _named(a)
+    path = _resolve(j, named.get(file_arg))
     if path is not None:
         named[file_arg] = os.path.abspath(path)
     _note_maximal(j, name, named, result)
     return j, named, path
 
 
-def _load_urdf(args, kwargs, result):
-    j, named, path = _load_file("loadURDF", _LOAD_URDF, "fileName", 7, args, kwargs, result)
+def _load_urdf(cid, a, result):
+    if "startPosX" in a:  # loadURDF(file, x, y, z[, qx, qy, qz, qw]): pybullet's legacy forms
+        a = {"fileName": a["fileName"], "basePosition": [float(a[k]) for k in ("startPosX", "startPosY", "startPosZ")],
+             "baseOrientation": [float(a.get(k, 0.0)) for k in ("startOrnX", "startOrnY", "startOrnZ")] +
+                                [float(a.get("startOrnW", 1.0))]}
+    j, named, path = _load_file("loadURDF", "fileName", cid, a, result)
     _note_self_collision(j, named.get("flags"), result)
     _read_file_groups(j, result, path)
 
 
-def _load_sdf(args, kwargs, result):
-    _load_file("loadSDF", _LOAD_SDF, "sdfFileName", 3, args, kwargs, result)
+def _load_sdf(cid, a, result):
+    _load_file("loadSDF", "sdfFileName", cid, a, result)
 
 
-def _load_mjcf(args, kwargs, result):
-    j = _on_create(_cid(args, kwargs, 3), result)
-    _note_self_collision(j, _arg(args, kwargs, 1, "flags", 0), result)
-    path = _resolve(j, _arg(args, kwargs, 0, "mjcfFileName"))
-    text = _read_text(path)
-    if text is None or re.search(r"\b(contype|conaffinity)\s*=", text):
-        why = "its MJCF contype/conaffinity" if text is not None else "its MJCF file could not be read"
-        for b in result:
-            j.filters_unknown[b] = why
+@dataclass
+class MjcfLoad:
+    """One loadMJCF call: the file (None: not found), the bodies it made in order, and how
+    (``flags``, ``multibody``: useMultiBody). ``mapping`` caches which of the file's models
+    each body is (``mjcf.match``)."""
+
+    path: object
+    bodies: tuple
+    flags: int
+    multibody: bool
+    mapping: object = None
 
 
-def _load_bullet(args, kwargs, result):
-    _on_create(_cid(args, kwargs, 1), result)
+def _load_mjcf(cid, a, result):
+    j = _on_create(cid, result)
+    _note_self_collision(j, a.get("flags", 0), result)
+    path = _resolve(j, a.get("mjcfFileName"))
+    load = MjcfLoad(None if path is None else os.path.abspath(path), tuple(_ids(result)), int(a.get("flags", 0) or 0),
+                    int(a.get("useMultiBody", 1)) != 0)
+    for b in load.bodies:
+        j.mjcf[b] = load
 
 
-def _load_soft_body(args, kwargs, result):
-    _on_create(_cid(args, kwargs, 21), result)
+def _load_bullet(cid, a, result):
+    _on_create(cid, result)
 
 
-def _change_dynamics(args, kwargs, result):
-    if len(args) > 2 or "mass" in kwargs:  # a mass change may switch a base between fixed and free
-        b = int(_arg(args, kwargs, 0, "bodyUniqueId"))
-        j = _structure(_cid(args, kwargs, 24), b)
-        if int(_arg(args, kwargs, 1, "linkIndex")) == -1:
+def _load_soft_body(cid, a, result):
+    _on_create(cid, result)
+
+
+def _change_dynamics(cid, a, result):
+    if "mass" in a:  # a mass change may switch a base between fixed and free
+        b = int(a["bodyUniqueId"])
+        j = _structure(cid, b)
+        if int(a["linkIndex"]) == -1:
             # pybullet re-adds a base that switches between fixed and free with the default
             # group and mask of its new kind; the plugin re-derives them on rediscovery.
             j.group_mask.pop((b, -1), None)
             j.filters = next(_serial)
 
 
-def _change_scaling(args, kwargs, result):
-    _structure(_cid(args, kwargs, 2), _arg(args, kwargs, 0, "bodyUniqueId"))
+def _change_scaling(cid, a, result):
+    _structure(cid, a["bodyUniqueId"])
 
 
-def _set_filter_pair(args, kwargs, result):
-    j = journal(_cid(args, kwargs, 5))
-    a, b = int(_arg(args, kwargs, 0, "bodyUniqueIdA")), int(_arg(args, kwargs, 1, "bodyUniqueIdB"))
-    la, lb = int(_arg(args, kwargs, 2, "linkIndexA")), int(_arg(args, kwargs, 3, "linkIndexB"))
-    j.pair_rules[pair_rule_key(a, la, b, lb)] = bool(_arg(args, kwargs, 4, "enableCollision"))
+def _set_filter_pair(cid, a, result):
+    j = journal(cid)
+    key = pair_rule_key(int(a["bodyUniqueIdA"]), int(a["linkIndexA"]), int(a["bodyUniqueIdB"]), int(a["linkIndexB"]))
+    j.pair_rules[key] = bool(a["enableCollision"])
     j.filters = next(_serial)
 
 
-def _set_group_mask(args, kwargs, result):
-    j = journal(_cid(args, kwargs, 4))
-    key = int(_arg(args, kwargs, 0, "bodyUniqueId")), int(_arg(args, kwargs, 1, "linkIndexA"))
-    j.group_mask[key] = (int(_arg(args, kwargs, 2, "collisionFilterGroup")),
-                         int(_arg(args, kwargs, 3, "collisionFilterMask")))
+def _set_group_mask(cid, a, result):
+    j = journal(cid)
+    j.group_mask[(int(a["bodyUniqueId"]), int(a["linkIndexA"]))] = (int(a["collisionFilterGroup"]),
+                                                                     int(a["collisionFilterMask"]))
     j.filters = next(_serial)
 
 
-def _set_engine_parameter(args, kwargs, result):
-    j = journal(_cid(args, kwargs, 27))
-    mode = _arg(args, kwargs, 5, "collisionFilterMode")
+def _set_engine_parameter(cid, a, result):
+    j = journal(cid)
+    mode = a.get("collisionFilterMode")
     if mode is not None:
         j.filter_mode = int(mode)
         j.filters = next(_serial)
-    substeps = _arg(args, kwargs, 4, "numSubSteps")
+    substeps = a.get("numSubSteps")
     if substeps is not None:
         j.num_substeps = int(substeps)
-    if substeps is not None or _arg(args, kwargs, 0, "fixedTimeStep") is not None:
+    if substeps is not None or a.get("fixedTimeStep") is not None:
         j.params = next(_serial)
 
 
-def _set_params(i):
-    def on(args, kwargs, result):
-        journal(_cid(args, kwargs, i)).params = next(_serial)
-    return on
+def _set_params(cid, a, result):
+    journal(cid).params = next(_serial)
 
 
-def _moved(i_cid, name):
-    def on(args, kwargs, result):
-        j = journal(_cid(args, kwargs, i_cid))
-        j.moved[int(_arg(args, kwargs, 0, name))] = j.last_move = next(_serial)
-    return on
+def _moved(cid, a, result):
+    j = journal(cid)
+    j.moved[int(a["bodyUniqueId"])] = j.last_move = next(_serial)
 
 
-def _reset_base_velocity(args, kwargs, result):
-    j = journal(_cid(args, kwargs, 3))
-    j.velocity_set[int(_arg(args, kwargs, 0, "objectUniqueId"))] = j.last_move = next(_serial)
+def _reset_base_velocity(cid, a, result):
+    j = journal(cid)
+    j.velocity_set[int(a["objectUniqueId"])] = j.last_move = next(_serial)
 
 
-def _restore_state(args, kwargs, result):
-    j = journal(_cid(args, kwargs, 2))
+def _restore_state(cid, a, result):
+    j = journal(cid)
     j.restored = j.last_move = next(_serial)
 
 
-def _step(args, kwargs, result):
-    j = journal(_cid(args, kwargs, 0))
+def _step(cid, a, result):
+    j = journal(cid)
     j.stepped = next(_serial)
     j.impulses.clear()
 
 
-def _search_path(args, kwargs, result):
-    journal(_cid(args, kwargs, 1)).search_paths.append(str(_arg(args, kwargs, 0, "path")))
+def _search_path(cid, a, result):
+    journal(cid).search_paths.append(str(a["path"]))
 
 
-# Impulses for substep replay: only recorded while the client is known to substep.
-def _apply_force(args, kwargs, result):
-    cid = _cid(args, kwargs, 5)
+# Impulses pybullet clears after every stepSimulation, recorded for BoxCCD to apply again
+# before each substep it takes and each partial step from a contact.
+def _apply_force(cid, a, result):
     j = journal(cid)
-    if j.num_substeps <= 1:
-        return
-    b, link = int(_arg(args, kwargs, 0, "objectUniqueId")), int(_arg(args, kwargs, 1, "linkIndex"))
-    force, pos = _arg(args, kwargs, 2, "forceObj"), _arg(args, kwargs, 3, "posObj")
-    flags = int(_arg(args, kwargs, 4, "flags"))
+    b, link = int(a["objectUniqueId"]), int(a["linkIndex"])
+    force, pos, flags = a["forceObj"], a["posObj"], int(a["flags"])
     origin, basis = _frame(cid, b, link)
     f = _rotate(basis, force) if flags & pybullet.LINK_FRAME else tuple(float(x) for x in force)
     rel = _rotate(basis, pos) if flags & pybullet.LINK_FRAME else tuple(float(p) - o for p, o in zip(pos, origin))
@@ -373,25 +552,22 @@ def _apply_force(args, kwargs, result):
     j.impulses.append(("force", (b, link, f, torque)))
 
 
-def _apply_torque(args, kwargs, result):
-    cid = _cid(args, kwargs, 4)
+def _apply_torque(cid, a, result):
     j = journal(cid)
-    if j.num_substeps <= 1:
-        return
-    b, link = int(_arg(args, kwargs, 0, "objectUniqueId")), int(_arg(args, kwargs, 1, "linkIndex"))
-    torque, flags = _arg(args, kwargs, 2, "torqueObj"), int(_arg(args, kwargs, 3, "flags"))
+    b, link = int(a["objectUniqueId"]), int(a["linkIndex"])
+    torque, flags = a["torqueObj"], int(a["flags"])
     t = _rotate(_frame(cid, b, link)[1], torque) if flags & pybullet.LINK_FRAME else tuple(float(x) for x in torque)
     j.impulses.append(("torque", (b, link, t)))
 
 
-def _motor(name, i_mode, i_cid):
-    def on(args, kwargs, result):
-        j = journal(_cid(args, kwargs, i_cid))
-        mode = int(_arg(args, kwargs, i_mode, "controlMode"))
+def _motor(name):
+    def on(cid, a, result):
+        j = journal(cid)
+        mode = int(a["controlMode"])
         if mode in _PD_MODES:
             j.pd_control = True
-        elif mode == pybullet.TORQUE_CONTROL and j.num_substeps > 1:
-            j.impulses.append(("call", (name, args, kwargs)))  # the joint torques, cleared after each step
+        elif mode == pybullet.TORQUE_CONTROL:
+            j.impulses.append(("call", (name, a)))  # the joint torques, cleared after each step
     return on
 
 
@@ -420,8 +596,8 @@ def replay_impulses(cid: int, impulses) -> None:
             b, link, t = a
             raw.applyExternalTorque(b, link, t, pybullet.WORLD_FRAME, physicsClientId=cid)
         else:
-            name, args, kwargs = a
-            getattr(raw, name)(*args, **kwargs)
+            name, named = a
+            getattr(raw, name)(**named)
 
 
 # ---------------------------------------------------- URDF collision groups
@@ -478,7 +654,8 @@ def _read_file_groups(j, body, path):
 
 
 # --------------------------------------------------------------- wrapping
-# name -> what to note after pybullet's own function returned.
+# name -> what to note after pybullet's own function returned (its arguments read by
+# ``SIGNATURES``, which names every function here).
 WRAPPED = {
     "resetSimulation": _reset_simulation,
     "createMultiBody": _create_multibody,
@@ -488,30 +665,30 @@ WRAPPED = {
     "loadBullet": _load_bullet,
     "loadSoftBody": _load_soft_body,
     "removeBody": _remove_body,
-    "createCollisionShape": _create_shape("createCollisionShape", _CREATE_SHAPE, 17),
-    "createCollisionShapeArray": _create_shape("createCollisionShapeArray", _CREATE_SHAPES, 10),
+    "createCollisionShape": _create_shape("createCollisionShape"),
+    "createCollisionShapeArray": _create_shape("createCollisionShapeArray"),
     "removeCollisionShape": _remove_shape,
     "changeDynamics": _change_dynamics,
     "unsupportedChangeScaling": _change_scaling,
     "setCollisionFilterPair": _set_filter_pair,
     "setCollisionFilterGroupMask": _set_group_mask,
     "setPhysicsEngineParameter": _set_engine_parameter,
-    "setTimeStep": _set_params(1),
-    "setGravity": _set_params(3),
-    "resetBasePositionAndOrientation": _moved(3, "bodyUniqueId"),
+    "setTimeStep": _set_params,
+    "setGravity": _set_params,
+    "resetBasePositionAndOrientation": _moved,
     "resetBaseVelocity": _reset_base_velocity,
-    "resetJointState": _moved(4, "bodyUniqueId"),
-    "resetJointStateMultiDof": _moved(4, "bodyUniqueId"),
-    "resetJointStatesMultiDof": _moved(4, "bodyUniqueId"),
+    "resetJointState": _moved,
+    "resetJointStateMultiDof": _moved,
+    "resetJointStatesMultiDof": _moved,
     "restoreState": _restore_state,
     "stepSimulation": _step,
     "setAdditionalSearchPath": _search_path,
     "applyExternalForce": _apply_force,
     "applyExternalTorque": _apply_torque,
-    "setJointMotorControl2": _motor("setJointMotorControl2", 2, 9),
-    "setJointMotorControlArray": _motor("setJointMotorControlArray", 2, 8),
-    "setJointMotorControlMultiDof": _motor("setJointMotorControlMultiDof", 2, 10),
-    "setJointMotorControlMultiDofArray": _motor("setJointMotorControlMultiDofArray", 2, 9),
+    "setJointMotorControl2": _motor("setJointMotorControl2"),
+    "setJointMotorControlArray": _motor("setJointMotorControlArray"),
+    "setJointMotorControlMultiDof": _motor("setJointMotorControlMultiDof"),
+    "setJointMotorControlMultiDofArray": _motor("setJointMotorControlMultiDofArray"),
 }
 
 raw = SimpleNamespace()  # pybullet's own functions, for the plugin's calls
@@ -520,7 +697,8 @@ raw = SimpleNamespace()  # pybullet's own functions, for the plugin's calls
 def _wrap(name, original, note):
     def wrapper(*args, **kwargs):
         result = original(*args, **kwargs)
-        note(args, kwargs, result)
+        a = bind(name, args, kwargs)
+        note(_cid(a), a, result)
         return result
 
     return _core.as_builtin(wrapper, name, original.__doc__ or "")

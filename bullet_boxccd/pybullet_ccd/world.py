@@ -14,10 +14,21 @@ last step are read again; filters are re-derived when they changed; a world that
 ``resetSimulation`` rebuilt is read whole. A change of the body count that the journal
 did not see (a call through a reference taken before this package was imported) also
 triggers a full read.
+
+Where a body's boxes come from: ``getCollisionShapeData`` for a multibody, except a body
+``loadMJCF`` made (that call can kill the process on it: its boxes are read from the file,
+``mjcf.py``) and a link whose shape the journal knows is a heightfield (pybullet prints an
+error when asked: left to pybullet); a shadow multibody or closest-point probes for a
+maximal-coordinate body (``shapes.py``). Boxes pybullet has but gives no pose for (the
+links of a maximal-coordinate body, a file that no longer matches its body) are named in
+one BoxCCDWarning per body and in ``summary()``.
 """
 
 from __future__ import annotations
 
+import os
+import re
+import sys
 import warnings
 from dataclasses import dataclass, field
 
@@ -25,6 +36,7 @@ import numpy as np
 import pybullet
 
 from ..motion import quat_to_matrix
+from . import mjcf
 from ._hooks import journal, new_serial, raw
 from .events import BoxCCDWarning
 from .filters import Filters, default_group_mask
@@ -34,7 +46,9 @@ __all__ = ["STATIC", "FREE", "LINK", "World", "Tables"]
 
 STATIC, FREE, LINK = 0, 1, 2
 _GEOMETRY = {pybullet.GEOM_SPHERE: "sphere", pybullet.GEOM_CAPSULE: "capsule", pybullet.GEOM_CYLINDER: "cylinder",
-             pybullet.GEOM_MESH: "mesh", pybullet.GEOM_PLANE: "plane"}
+             pybullet.GEOM_MESH: "mesh", pybullet.GEOM_PLANE: "plane", pybullet.GEOM_HEIGHTFIELD: "heightfield"}
+# Names pybullet's MJCF importer gives: a body's fixed joint, an unnamed body's link.
+_MJCF_JOINT, _MJCF_LINK = re.compile(r"jointfix_\d+_-?\d+$"), re.compile(r"link\d+_\d+$")
 _MAXIMAL, _SOFT = 1, 3  # getDynamicsInfo(...)[10]: the body's type
 
 
@@ -53,6 +67,10 @@ class _Body:
     left: list = field(default_factory=list)  # (link, what): shapes left to pybullet
     unreadable: list = field(default_factory=list)  # (link, why): boxes that could not be read
     maximal: bool = False
+    # Boxes pybullet has but BoxCCD cannot place: [(link, number of boxes)] and why.
+    untracked: list = field(default_factory=list)
+    untracked_why: str = ""
+    groups: dict = field(default_factory=dict)  # link -> (group, mask) its file sets (MJCF)
 
 
 @dataclass
@@ -149,9 +167,20 @@ class World:
         n_joints = raw.getNumJoints(b, physicsClientId=cid)
         fixed_base = info[0] == 0.0
         names = self._link_names(b, n_joints)
-        shadow = self._shadow.boxes(cid, self.journal, b) if rec.maximal else None
+        from_file = self._mjcf_links(b, rec, names, n_joints)
+        shadow = None
+        if rec.maximal and from_file is None and self.journal.link_geometry.get(b, {}).get(-1) != \
+                pybullet.GEOM_HEIGHTFIELD:
+            shadow = self._shadow.boxes(cid, self.journal, b)
+            if shadow is not None:  # pybullet poses no link of a maximal-coordinate body (getNumJoints is 0)
+                left = [(lk, len(bx)) for lk, bx in sorted(shadow.items()) if lk >= 0 and bx]
+                if left:
+                    rec.untracked = left
+                    rec.untracked_why = ("pybullet reports neither the pose nor the velocity of the links of a "
+                                         "maximal-coordinate body (getNumJoints is 0, getLinkState gives nothing); "
+                                         "make it with useMaximalCoordinates=False to have them swept")
         for link in range(-1, n_joints):
-            boxes, why = self._frame_boxes(b, link, rec, shadow)
+            boxes, why = self._frame_boxes(b, link, rec, shadow, from_file)
             if why is not None:
                 rec.unreadable.append((link, why))
             if not boxes:
@@ -163,10 +192,67 @@ class World:
             rec.frames.append(_Frame(link, kind, boxes, fixed=link == -1 and fixed_base, name=names[link]))
         return rec
 
-    def _frame_boxes(self, b, link, rec, shadow):
+    def _mjcf_links(self, b, rec, names, n_joints):
+        """{link: MjcfLink} of a body loaded by loadMJCF, read from its file ({} if it cannot be
+        mapped, the reason in ``rec``); None for other bodies. getCollisionShapeData is never
+        called on such a body: it can kill the process (pybullet 3.2.x; see mjcf.py)."""
+        load = self.journal.mjcf.get(b)
+        if load is None:
+            if b not in self.journal.created and self._looks_mjcf(b, names, n_joints):
+                rec.untracked_why = ("it was made unseen and looks loaded by loadMJCF (link or joint names of "
+                                     "pybullet's MJCF importer), whose bodies getCollisionShapeData can crash on; "
+                                     "import bullet_boxccd before loading it")
+                rec.untracked = [(None, None)]
+                return {}
+            return None
+        if load.mapping is None:
+            load.mapping = mjcf.match(raw, self.cid, load)
+        model = load.mapping.get(b)
+        if isinstance(model, str) or model is None:
+            rec.untracked_why = f"loaded by loadMJCF: {model or 'unknown to the journal'}"
+            rec.untracked = self._file_boxes(load)
+            return {}
+        if rec.maximal:  # loadMJCF(useMultiBody=0): pybullet keeps only the root as the body
+            left = [(i - 1, len(lk.boxes)) for i, lk in enumerate(model.links) if i and lk.boxes]
+            if left:
+                rec.untracked = left
+                rec.untracked_why = ("loaded by loadMJCF with useMultiBody=0: pybullet reports neither the pose nor "
+                                     "the velocity of its links other than the root; load it with useMultiBody=1 to "
+                                     "have them swept")
+            links = {-1: model.links[0]}
+        else:
+            links = {i - 1: lk for i, lk in enumerate(model.links)}
+        rec.groups = {lk: m.group_mask for lk, m in links.items() if m.group_mask is not None}
+        return links
+
+    @staticmethod
+    def _file_boxes(load):
+        try:
+            models = mjcf.read_models(load.path, load.flags)
+        except Exception:  # the reason is given already
+            return [(None, None)]
+        n = sum(len(lk.boxes) for m in models if m is not None for lk in m.links)
+        return [(None, n)]
+
+    def _looks_mjcf(self, b, names, n_joints) -> bool:
+        if any(_MJCF_LINK.match(name) for name in names.values()):
+            return True
+        return any(_MJCF_JOINT.match(raw.getJointInfo(b, j, physicsClientId=self.cid)[1].decode("utf-8", "replace"))
+                   for j in range(n_joints))
+
+    def _frame_boxes(self, b, link, rec, shadow, from_file=None):
         """(boxes, why unreadable or None) of one frame; shapes left to pybullet are noted."""
         if (b, link) in self.registered:
             return self.registered[(b, link)][1], None
+        if from_file is not None:
+            lk = from_file.get(link)
+            if lk is None:
+                return [], None
+            rec.left.extend((link, what) for what in lk.others)
+            return list(lk.boxes), None
+        if self.journal.link_geometry.get(b, {}).get(link) == pybullet.GEOM_HEIGHTFIELD:
+            rec.left.append((link, "heightfield"))  # getCollisionShapeData would print an error for it
+            return [], None
         if not rec.maximal:
             boxes, others = multibody_boxes(self.cid, b, link)
             rec.left.extend((link, _GEOMETRY.get(g, str(g))) for g in others)
@@ -228,7 +314,9 @@ class World:
                 kinds.append(fr.kind)
                 selfc.append(b in self.self_collision_bodies or b in self.journal.self_collision)
                 defaults.append(default_group_mask(fr.fixed))
-                if fr.name in file_groups:
+                if fr.link in rec.groups:
+                    fgm[(b, fr.link)] = rec.groups[fr.link]
+                elif fr.name in file_groups:
                     fgm[(b, fr.link)] = file_groups[fr.name]
                 for h, X in fr.boxes:
                     box_frame.append(f)
@@ -237,6 +325,9 @@ class World:
             for link, why in rec.unreadable:
                 self._warn(("unreadable", b, link), f"body {b} link {link}: its boxes cannot be read ({why}); "
                                                     "left to pybullet (declare them with BoxCCD.register_box)")
+            if rec.untracked:
+                self._warn(("untracked", b, self.journal.bodies.get(b, 0), self.journal.reset),
+                           f"body {b}: {_untracked(rec)} left to pybullet, not swept: {rec.untracked_why}")
         half = np.array(half, dtype=float).reshape(-1, 3)
         X_CS = np.array(X_CS, dtype=float).reshape(-1, 4, 4)
         frame_boxes = [[] for _ in keys]
@@ -263,7 +354,20 @@ class World:
                 lines.append(f"  left to pybullet: body {b} link {link}: {what}")
             for link, why in rec.unreadable:
                 lines.append(f"  body {b} link {link}: boxes unreadable ({why}); use register_box()")
+            if rec.untracked:
+                lines.append(f"  not tracked: body {b}: {_untracked(rec)} ({rec.untracked_why})")
         return "\n".join(lines)
+
+
+def _untracked(rec) -> str:
+    """The boxes of a body that BoxCCD cannot track, in words."""
+    known = [(lk, n) for lk, n in rec.untracked if lk is not None]
+    if known:
+        total = sum(n for _, n in known)
+        return (f"{total} box{'es' if total != 1 else ''} on link{'s' if len(known) > 1 else ''} "
+                + ", ".join(f"{lk} ({n})" for lk, n in known))
+    n = rec.untracked[0][1]
+    return "its boxes" if n is None else f"its boxes (its file has {n})"
 
 
 def pose_matrix(position, quaternion) -> np.ndarray:
@@ -273,10 +377,26 @@ def pose_matrix(position, quaternion) -> np.ndarray:
     return X
 
 
+_PACKAGE = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+
+
+def _in_package(filename) -> bool:
+    return os.path.abspath(filename).startswith(_PACKAGE + os.sep)
+
+
+def outside_stacklevel() -> int:
+    """The ``stacklevel`` for warnings.warn, called right here, that names the first frame
+    outside this package: the user's line that built or stepped the BoxCCD."""
+    level, frame = 1, sys._getframe(1)
+    while frame is not None and _in_package(frame.f_code.co_filename):
+        frame, level = frame.f_back, level + 1
+    return level
+
+
 def warn_once(seen: set):
-    """A warner that emits each key's BoxCCDWarning once."""
+    """A warner that emits each key's BoxCCDWarning once, at the user's line."""
     def warn(key, message):
         if key not in seen:
             seen.add(key)
-            warnings.warn(message, BoxCCDWarning, stacklevel=4)
+            warnings.warn(message, BoxCCDWarning, stacklevel=outside_stacklevel())
     return warn
