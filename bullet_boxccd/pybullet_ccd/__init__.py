@@ -238,6 +238,8 @@ class BoxCCD:
                 if not stepped:
                     self._state.begin(self._known)
                     raw.stepSimulation(physicsClientId=self.cid)
+                    if k:
+                        piece = self._within_clamp(piece)
                 t_sim = time.perf_counter()
                 self.stats.seconds["step"] += t_sim - t_start
                 back = k < self.max_partial_steps
@@ -265,11 +267,34 @@ class BoxCCD:
         turns by more than Bullet's clamp of pi/4 a step in it (above the clamp, the turn
         Bullet integrates is slower than the spin its contact solver sees: a spinning box
         would press on into what it strikes)."""
+        spin = self._spin()
+        return rest if spin * rest <= _CLAMP else _CLAMP / spin
+
+    def _spin(self):
         st = self._state
-        if not st.moving:
-            return rest
-        spin = float(np.max(np.linalg.norm(st.rows[st.moving, ANGULAR_VELOCITY], axis=1)))
-        return rest if spin * rest <= _CLAMP else min(rest, _CLAMP / spin)
+        return float(np.max(np.linalg.norm(st.rows[st.moving, ANGULAR_VELOCITY], axis=1))) if st.moving else 0.0
+
+    def _within_clamp(self, piece):
+        """After a partial step of ``piece`` seconds: if the impact at its start spun a body
+        past Bullet's turn clamp in it, the world goes back to the partial step's start (every
+        body where its path has it then, with the velocities it started with) and takes a
+        partial step short enough for that spin, once. Returns the length taken."""
+        st = self._state
+        st.read_velocities()
+        spin = self._spin()
+        if spin * piece <= _CLAMP * (1.0 + 1e-9) or st.twist0 is None:
+            return piece
+        self._chains.read(piece, st, True)
+        self.contacts.world_to_start(self.world.tables, st, piece)
+        self._chains.stop_all(0.0, st)
+        piece = _CLAMP / spin
+        raw.setPhysicsEngineParameter(fixedTimeStep=piece, physicsClientId=self.cid)
+        replay_impulses(self.cid, self.world.journal.impulses)
+        st.begin(True)
+        raw.stepSimulation(physicsClientId=self.cid)
+        st.fresh = set()  # the poses read or placed before this step are not its end
+        self.stats.partial_steps += 1
+        return piece
 
     def _sweep(self, h, t0, user_moved, back, stepped=False, fast=None):
         """Sweep the (partial) step of h seconds just taken and resolve its contacts: with

@@ -203,6 +203,11 @@ class Contacts:
                 place(self.cid, tables, state, f, pose7(paths.com(f, 1.0)), v, w)
                 self.stats.rewinds += tr.status == _STOPPED
 
+    def world_to_start(self, tables, state, dt):
+        """Every free body back where the (partial) step of dt began, with the velocities it
+        began with (``state.twist0``)."""
+        self._world_to(None, tables, state, dt, np.zeros(3), 0.0, ())
+
     def _world_to(self, paths, tables, state, dt, gravity, tau, struck):
         """Every free body where its path has it at tau, and every kinematic frame with a
         velocity where Bullet's path has it; carried bodies where their ride ends (the rest
