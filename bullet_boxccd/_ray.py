@@ -38,8 +38,8 @@ def _ray():
         import ray
     except ImportError:
         raise RayMissingError(
-            'this needs Ray: pip install "bullet_boxccd[scale]" (in a checkout: pip install ".[scale]"), '
-            "or run in this process with --workers 0") from None
+            'this needs Ray: pip install ".[scale]" in the bullet_boxccd checkout (the package is not on an '
+            "index), or run in this process with --workers 0") from None
     return ray
 
 
