@@ -27,6 +27,7 @@ from .solver import (
 __all__ = [
     "BoxCCD",
     "BoxCCDWarning",
+    "ClientDisconnectedError",
     "CCDEvent",
     "Box",
     "QuadraticMotion",
@@ -52,7 +53,7 @@ __all__ = [
 
 def __getattr__(name):
     # The pybullet adapter is imported on first use, so the solver works without pybullet.
-    if name in ("BoxCCD", "BoxCCDWarning", "CCDEvent", "CCDStats"):
+    if name in ("BoxCCD", "BoxCCDWarning", "ClientDisconnectedError", "CCDEvent", "CCDStats"):
         from . import pybullet_ccd
 
         return getattr(pybullet_ccd, name)

@@ -436,6 +436,48 @@ def test_max_partial_steps_zero_still_steps(cid):
     assert x_of(cid, cube) > 0.04
 
 
+# ----------------------------------------------------------------- lifecycle
+def test_a_disconnected_client_is_a_typed_error_and_a_reconnected_one_is_named():
+    from bullet_boxccd import ClientDisconnectedError
+
+    cid = p.connect(p.DIRECT)
+    box(cid, [0.1] * 3, [0, 0, 0])
+    ccd = BoxCCD(cid)
+    ccd.step()
+    p.disconnect(cid)
+    with pytest.raises(ClientDisconnectedError, match=f"physics client {cid} was disconnected"):
+        ccd.step()
+    again = p.connect(p.DIRECT)  # pybullet reuses the freed id: another, empty world
+    try:
+        assert again == cid
+        with pytest.raises(ClientDisconnectedError, match="a new world connected under its id"):
+            ccd.step()
+    finally:
+        p.disconnect(again)
+
+
+def test_a_fast_box_at_pybullets_velocity_clamp_is_named_once(cid):
+    """pybullet clamps a body's speed to 100 m/s by default (maxJointVelocity): a box
+    given 150 m/s moves at 100, and BoxCCD says so once; one given 150 with the clamp
+    lifted moves faster and nothing is said."""
+    reset(cid)
+    data = pybullet_data.getDataPath()
+    clamped = p.loadURDF(os.path.join(data, "cube_small.urdf"), [0, 0, 0], physicsClientId=cid)
+    lifted = p.loadURDF(os.path.join(data, "cube_small.urdf"), [0, 5, 0], physicsClientId=cid)
+    p.changeDynamics(lifted, -1, maxJointVelocity=1000, physicsClientId=cid)
+    for b in (clamped, lifted):
+        p.resetBaseVelocity(b, [150, 0, 0], [0, 0, 0], physicsClientId=cid)
+    ccd = BoxCCD(cid)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        for _ in range(4):
+            ccd.step()
+    said = [str(w.message) for w in caught if issubclass(w.category, BoxCCDWarning)]
+    assert len(said) == 1 and f"body {clamped} " in said[0] and "maxJointVelocity" in said[0], said
+    assert caught[0].filename == __file__
+    assert p.getBaseVelocity(lifted, physicsClientId=cid)[0][0] > 100.5  # not clamped (damped a little)
+
+
 # -------------------------------------------------------------------- layout
 def test_named_columns_agree_with_the_core():
     core = _core.layouts()

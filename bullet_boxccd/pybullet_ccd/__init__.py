@@ -38,19 +38,20 @@ from contextlib import contextmanager
 from dataclasses import replace
 
 import numpy as np
+import pybullet
 
 from .._arrays import as_float_array
 from ..solver import DEFAULT_TOLERANCES, InvalidInputError, Tolerances
 from ._hooks import last_serial, raw, replay_impulses
 from .articulated import Articulated
-from .events import BoxCCDWarning, CCDEvent, CCDStats
-from .layout import ANGULAR_VELOCITY
 from .contacts import Contacts
+from .events import BoxCCDWarning, CCDEvent, CCDStats, ClientDisconnectedError
+from .layout import ANGULAR_VELOCITY
 from .state import FrameState
 from .sweep import jump_sweep, sweep
 from .world import STATIC, World, pose_matrix, warn_once
 
-__all__ = ["BoxCCD", "BoxCCDWarning", "CCDEvent", "CCDStats"]
+__all__ = ["BoxCCD", "BoxCCDWarning", "ClientDisconnectedError", "CCDEvent", "CCDStats"]
 
 _CLAMP = 0.999 * 0.25 * math.pi  # (rad) just under Bullet's largest turn of a body in one step
 
@@ -179,7 +180,23 @@ class BoxCCD:
     # ------------------------------------------------------------- stepping
     def step(self) -> list:
         """``p.stepSimulation()``, swept, with partial steps from the contacts pybullet would
-        resolve wrongly; returns this step's contacts."""
+        resolve wrongly; returns this step's contacts. Raises ``ClientDisconnectedError`` if
+        the client was disconnected."""
+        try:
+            return self._step_once()
+        except pybullet.error:
+            self._check_connected()
+            raise
+
+    def _check_connected(self):
+        if self.world.journal.closed or not raw.getConnectionInfo(self.cid)["isConnected"]:
+            again = raw.getConnectionInfo(self.cid)["isConnected"]
+            raise ClientDisconnectedError(
+                f"physics client {self.cid} was disconnected"
+                + (" and a new world connected under its id: this BoxCCD's world is gone; make a new "
+                   f"BoxCCD({self.cid}) for the new one" if again else " (p.disconnect)"))
+
+    def _step_once(self) -> list:
         cid = self.cid
         if self._quiet and last_serial() == self._epoch and raw.getNumBodies(physicsClientId=cid) == self.world.count:
             # Nothing changed in the world since the last step: step, read the velocities
@@ -202,6 +219,7 @@ class BoxCCD:
         return events
 
     def _full_step(self):
+        self._check_connected()
         self._sync()
         dt, n = self._dt, self._substeps
         if n == 1:
@@ -311,7 +329,7 @@ class BoxCCD:
         self._known = True
         st.end_kinematic(h)
         sw = None if stepped and fast is None else sweep(self.cid, t, st, h, self.fit_tolerance, self.tolerances,
-                                                          self.penetration, self.stats, t0, fast)
+                                                          self.penetration, self.stats, t0, fast, self._at_clamp)
         jw = jump_sweep(self.cid, t, st, h, self.fit_tolerance, self.tolerances, self.penetration, self.stats)
         found = self._chains_find(h)
         if sw is None and jw is None and not found:
@@ -340,6 +358,16 @@ class BoxCCD:
         self.stats.seconds["rewind"] += time.perf_counter() - t3
         self.stats.contacts += len(events)
         return sorted(events, key=lambda e: e.tau), tau
+
+    def _at_clamp(self, frames):
+        """Fast frames moving or turning at exactly pybullet's default velocity clamp."""
+        for f in frames:
+            b = self.world.tables.keys[f][0]
+            if self.world.maximal(b):
+                continue
+            self._warn(("clamp", b), f"body {b} moves or turns at 100 (m/s, rad/s), pybullet's default "
+                                     "velocity clamp: if it was given more, pybullet cut it to that "
+                                     f"(p.changeDynamics({b}, -1, maxJointVelocity=...) lifts it)")
 
     def _chains_find(self, h):
         if not self._chains.bodies:

@@ -80,6 +80,7 @@ class Journal:
     """
 
     reset: int = 0  # resetSimulation (everything below is cleared with it)
+    closed: bool = False  # the client was disconnected (a later one under its id has a journal of its own)
     bodies: dict = field(default_factory=dict)  # body -> serial of its creation, removal, mass or scale change
     last_body: int = 0  # the latest serial in ``bodies``
     created: set = field(default_factory=set)  # bodies made through the wrapped functions (provenance)
@@ -174,6 +175,7 @@ _MOTOR_ARRAY = ("jointIndices", "controlMode", "targetPositions", "targetVelocit
 # ``loadURDF(file, x, y, z)`` and ``loadURDF(file, x, y, z, qx, qy, qz, qw)`` (no client id:
 # they always load into client 0); ``bodyIndex`` is the old name of ``bodyUniqueId``.
 SIGNATURES = {
+    "disconnect": (Form(("physicsClientId",)),),
     "resetSimulation": (Form(("flags", "physicsClientId")),),
     "createMultiBody": (Form(("baseMass", "baseCollisionShapeIndex", "baseVisualShapeIndex", "basePosition",
                               "baseOrientation", "baseInertialFramePosition", "baseInertialFrameOrientation",
@@ -342,6 +344,13 @@ def _remove_body(cid, a, result):
 
 def _reset_simulation(cid, a, result):
     journal(cid).clear()
+
+
+def _disconnect(cid, a, result):
+    j = _journals.pop(cid, None)
+    if j is not None:
+        j.closed = True
+        j.reset = next(_serial)
 
 
 def _note_maximal(j, name, named, result, flag="useMaximalCoordinates"):
@@ -657,6 +666,7 @@ def _read_file_groups(j, body, path):
 # name -> what to note after pybullet's own function returned (its arguments read by
 # ``SIGNATURES``, which names every function here).
 WRAPPED = {
+    "disconnect": _disconnect,
     "resetSimulation": _reset_simulation,
     "createMultiBody": _create_multibody,
     "loadURDF": _load_urdf,

@@ -9,12 +9,17 @@ import numpy as np
 
 from ..solver import Feature, Outcome
 
-__all__ = ["BoxCCDWarning", "CCDEvent", "CCDStats"]
+__all__ = ["BoxCCDWarning", "ClientDisconnectedError", "CCDEvent", "CCDStats"]
 
 
 class BoxCCDWarning(UserWarning):
     """Something in the world BoxCCD cannot see or handle (named in the message); what
     it concerns is left to pybullet."""
+
+
+class ClientDisconnectedError(RuntimeError):
+    """The physics client a BoxCCD steps was disconnected (a world connected later under the
+    same id is another world: make a BoxCCD for it)."""
 
 
 @dataclass(frozen=True)

@@ -21,7 +21,7 @@ import numpy as np
 
 from .. import _core
 from ._hooks import raw
-from .layout import POSE, TWIST
+from .layout import ANGULAR_VELOCITY, POSE, TWIST, VELOCITY
 from .world import FREE
 
 __all__ = ["Sweep", "sweep", "jump_sweep", "moves_into", "CREEP", "overlap_query"]
@@ -60,6 +60,9 @@ class Sweep:
         return {(int(i), int(j)): q for q, (i, j) in enumerate(self.pairs.tolist())}
 
 
+# pybullet's default maxJointVelocity: it clamps |v| (m/s) and |w| (rad/s) of a body to it.
+_PYBULLET_CLAMP = 100.0
+
 # A step's partners of the fast boxes come from pybullet's broad phase (one
 # getOverlappingObjects per fast box) unless reading every moving frame's pose costs
 # less: measured on pybullet 3.2.7, the query costs about as much as 4 pose reads; the
@@ -68,10 +71,11 @@ _READS_PER_QUERY = 4
 _OWN_BROAD_PHASE_BOXES = 64
 
 
-def sweep(cid, tables, state, dt, fit_tolerance, tolerances, penetration, stats, t0, fast=None):
+def sweep(cid, tables, state, dt, fit_tolerance, tolerances, penetration, stats, t0, fast=None, at_clamp=None):
     """Sweep the step just taken (``state`` holds the velocities of the moving frames and
     the kinematic frames' poses; ``fast`` what ``state.sweeper.fast`` found, if it was
-    asked already). Returns a Sweep, or None if nothing touched."""
+    asked already). Returns a Sweep, or None if nothing touched. ``at_clamp`` is told the
+    fast frames whose speed or spin is pybullet's default velocity clamp."""
     sweeper = state.sweeper
     if fast is None:
         fast = sweeper.fast(dt)
@@ -79,6 +83,12 @@ def sweep(cid, tables, state, dt, fit_tolerance, tolerances, penetration, stats,
             stats.seconds["state"] += time.perf_counter() - t0
             return None
     fast, slack, fast_frames = fast
+    if at_clamp is not None:
+        rows = state.rows[fast_frames]
+        speeds = np.stack([np.linalg.norm(rows[:, VELOCITY], axis=1), np.linalg.norm(rows[:, ANGULAR_VELOCITY], axis=1)])
+        clamped = np.any(np.abs(speeds - _PYBULLET_CLAMP) <= 1e-9 * _PYBULLET_CLAMP, axis=0)
+        if clamped.any():
+            at_clamp([f for f, c in zip(fast_frames, clamped) if c])
     state.read_poses(state.stale(fast_frames))
     stats.swept_boxes += len(fast)
     t1 = time.perf_counter()

@@ -345,6 +345,12 @@ class World:
             frame_boxes=frame_boxes, frames_of=frames_of, filters=Filters(keys, defaults, fgm, self.journal))
 
     # ---------------------------------------------------------------- summary
+    def maximal(self, b) -> bool:
+        """Whether body b is in maximal coordinates (a btRigidBody: pybullet's velocity clamp
+        is its multibodies')."""
+        rec = self._bodies.get(b)
+        return rec is not None and rec.maximal
+
     def summary(self) -> str:
         t = self.tables
         lines = [f"BoxCCD: {len(t.half)} boxes on {len(t.keys)} links of {len(set(t.body.tolist()))} bodies "
