@@ -1,4 +1,4 @@
-"""Articulated bodies in pybullet worlds (issue 13): every link box swept on its exact
+"""Articulated bodies in pybullet worlds: every link box swept on its exact
 path, the whole body rewound in joint space, self-collision as pybullet decides it.
 Each scene runs with plain pybullet in the same test: the plain run must go wrong
 (the contrast), the plugin's must not."""

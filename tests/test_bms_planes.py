@@ -1,4 +1,4 @@
-"""The seed's intermediate results: the 30 BMS planes equal the facets of the
+"""The BMS algorithm's intermediate results: the 30 BMS planes equal the facets of the
 convex hull of the 64 vertex differences (scipy), plane for plane and label for
 label, and the section boundaries are where the topology changes."""
 
@@ -29,7 +29,7 @@ def hull_facets(VA, VB, L):
 
 
 def expected_feature(ids):
-    """Common sign triple of a set of vertex ids (0 where they differ) -> seed name."""
+    """Common sign triple of a set of vertex ids (0 where they differ) -> the BMS algorithm's feature name."""
     s = SIGNS[sorted(ids)]
     return feature_name(np.where(np.all(s == s[0], axis=0), s[0], 0))
 
@@ -91,7 +91,7 @@ def test_aligned_translation_has_no_switches():
 
 
 def _switch_values(ca, cb, ts):
-    """The seed's 18 octant-switch functions at times ts (n,), straight from the
+    """The BMS algorithm's 18 octant-switch functions at times ts (n,), straight from the
     two motions' 3x3 parts: S[q][i][l] = (u_{i+1} x u_{i+2}) . v_l with (u, v) =
     (A's, B's) edge directions for q = 0 and (B's, A's) for q = 1. Returns the
     values (n, 18) and their scales |u_{i+1}| |u_{i+2}| |v_l| (n, 18)."""

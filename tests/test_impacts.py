@@ -44,7 +44,7 @@ def stepper(cid, use, fine=1):
 
 
 def converged(figure, run, seeds, fine, tolerance):
-    """``figure`` of plain pybullet's runs at DT / fine over the seeds, asserted to move by
+    """``figure`` of plain pybullet's runs at DT / fine over ``seeds``, asserted to move by
     less than ``tolerance`` when the step is halved again."""
     once = figure([run(s, fine) for s in seeds])
     again = figure([run(s, 2 * fine) for s in seeds])
@@ -193,7 +193,7 @@ def test_a_sliding_puck_follows_plain_pybullet_exactly(cid, ground):
 def test_a_tumbling_die_stays_as_close_to_the_converged_engine_as_plain(cid, ground):
     """Its landings end a step up to 1 cm inside the ground (the die is 1.6 cm): BoxCCD
     takes them back to their contact, and the die's path stays as close to the converged
-    engine's as plain pybullet's (median over the seeds of the largest distance)."""
+    engine's as plain pybullet's (median over seeds of the largest distance)."""
     off = {"plain": [], "plugin": []}
     rewinds = 0
     for seed in range(6):

@@ -1,7 +1,7 @@
 """boxccd sweep: the trade-off grid of benchmarks/tradeoff.py as tasks, in-process and on Ray.
 
 A tiny grid (10 boxes, the --quick configurations, 1 seed, 24 steps) keeps it fast; the
-timing columns depend on where a task ran, every other column only on the seeds.
+timing columns depend on where a task ran, every other column only on the trials' seeds.
 """
 
 from __future__ import annotations
