@@ -182,7 +182,7 @@ def main():
     for m in methods:
         name = m if isinstance(m, str) else f"plain, numSubSteps {m}"
         print(f"| {name} | {best[m] / best['plain']:.2f}x | {losses[m]} |")
-    print(f"(plain: {1e6 * best['plain']:.0f} us a step on this machine)")
+    print(f"(plain: {1e6 * best['plain']:.0f} us a step here)")
     plain, plugin, read = resting(cid, 4 * args.steps, args.repeats)
     print(f"\n3. r2d2 resting on plane.urdf, {4 * args.steps} steps, min of {args.repeats} runs (CPU time)")
     print("| plugin, x plain | plain + one read of the robot, x plain | plugin's own share of a plain step |")

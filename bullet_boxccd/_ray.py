@@ -2,7 +2,7 @@
 
 ``map_unordered(fn, jobs)`` runs ``fn(*args)`` for every ``(key, args)`` job as a Ray task
 and yields ``(key, result)`` as tasks finish. With ``address`` it joins that cluster
-(``ray.init(address=...)``: "auto" for the cluster this machine belongs to, or
+(``ray.init(address=...)``: "auto" for the cluster the local machine belongs to, or
 "ray://host:10001" through Ray Client); without one it starts a local Ray on this
 machine's cores (or ``workers`` of them) and shuts it down afterwards. ``workers``
 bounds the tasks in flight (default: the cluster's CPUs), so results stream back and

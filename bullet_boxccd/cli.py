@@ -13,7 +13,7 @@ A case file holds ``lo_a``, ``hi_a``, ``coeffs_a``, ``lo_b``, ``hi_b``, ``coeffs
 (nested lists, as for ``time_of_impact``) and optionally ``t_range``; ``validate``
 writes its failures in that format (with what it found, which ``toi`` ignores).
 ``validate`` and ``sweep`` run on Ray (``pip install ".[scale]"`` from the checkout): a
-local Ray on this machine's cores, or the cluster at ``--address``; ``--workers 0`` runs
+local Ray on the local machine's cores, or the cluster at ``--address``; ``--workers 0`` runs
 in this process. They check for their extras before any work.
 
 Each demo declares its options in a module-level ``OPTIONS`` dict literal

@@ -127,7 +127,7 @@ def main(argv=None):
     add_demo_options(ap, OPTIONS)
     args = ap.parse_args(argv)
     pyplot()  # before any work
-    S = Box(lo=(-1.0, -0.5, -0.25), hi=(1.0, 0.5, 0.25))  # the seed's (X, Y, Z) and (X', Y', Z')
+    S = Box(lo=(-1.0, -0.5, -0.25), hi=(1.0, 0.5, 0.25))  # the BMS algorithm's (X, Y, Z) and (X', Y', Z')
     M = Box(lo=(0.0, 0.0, 0.0), hi=(0.4, 0.3, 0.2))  # an off-centre box in its own frame
     start = np.eye(4)
     start[:3, :3] = rotation_matrix((1, 2, 3), 0.7)

@@ -380,7 +380,8 @@ def test_substeps_are_each_swept(cid, substeps):
     dict(sweep_threshold=float("nan")), dict(sweep_threshold=-0.1), dict(sweep_threshold=float("inf")),
     dict(fit_tolerance=0.0), dict(fit_tolerance=2.0), dict(penetration=1.0), dict(penetration=0.0),
     dict(penetration=float("nan")), dict(max_partial_steps=-1), dict(max_partial_steps=2.5),
-    dict(depth_tolerance=-1.0), dict(depth_tolerance=float("nan")), dict(self_collision_bodies=[999]), dict(tolerances=1e-12),
+    dict(depth_tolerance=-1.0), dict(depth_tolerance=float("nan")), dict(sweep_distance=-0.01),
+    dict(sweep_distance="far"), dict(self_collision_bodies=[999]), dict(tolerances=1e-12),
 ])
 def test_bad_arguments_raise_naming_argument_and_value(cid, kwargs):
     reset(cid)

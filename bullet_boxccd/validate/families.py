@@ -10,7 +10,7 @@ and the case files.
 Motions are built here, vectorised, from the same definitions as
 ``QuadraticMotion``: ``screw`` is the quadratic through the start, middle and end
 poses of a rigid translate-and-spin (``QuadraticMotion.screw``), ``ballistic`` a
-fixed orientation with p + v t + a t^2 / 2. Box A plays the seed's S, box B its
+fixed orientation with p + v t + a t^2 / 2. Box A plays the BMS algorithm's S, box B its
 M; B is thrown at A from a few box sizes away so that about half the pairs touch.
 
 Families (the knob in brackets):
