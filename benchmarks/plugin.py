@@ -31,8 +31,10 @@ Methods (``fixedTimeStep`` 1/240 s per step throughout):
 
 * ``plain``: ``p.stepSimulation()`` (multibody bodies, ``numSubSteps`` 0),
 * ``plugin``: ``BoxCCD(cid).step()`` on the same world,
-* ``plugin exact_time``: ``BoxCCD(cid, exact_time=True)`` (when the installed version
-  has that option): after a contact the rest of the step is simulated from there,
+* ``plugin, no partial steps``: ``BoxCCD(cid, max_partial_steps=0)``: the bodies of a
+  contact pybullet would resolve wrongly go back to it on their own and the step ends
+  there (pybullet resolves it at the next step), instead of the rest of the step being
+  simulated from the contact,
 * ``substeps k`` (k = 2, 4, 8, 16): ``p.setPhysicsEngineParameter(numSubSteps=k)``,
   so one step is k solver steps of 1/(240 k) s,
 * ``plain (maximal)``: the same scene built with ``useMaximalCoordinates=True``
@@ -50,7 +52,7 @@ median's ratio to ``plain`` of the same N. Trials run seeds outer, methods inner
 a burst of load from elsewhere hits every method alike. For the plugin the per-phase
 seconds of ``ccd.stats.seconds`` (reading the state, broad phase, solver, rewind; a
 step in which nothing is fast is not timed by phase) are printed per step, and its
-counters (swept boxes, candidate pairs, solver rows, contacts, rewinds, held) summed
+counters (swept boxes, candidate pairs, solver rows, contacts, rewinds, partial steps) summed
 over the trials.
 
 First, small worlds (what a reinforcement-learning world steps millions of times):
@@ -78,8 +80,8 @@ Run
 Options: ``--seed`` (default 2024), ``--trials`` (per N up to 100 boxes, default 6;
 larger scenes get a third of them, at least 1), ``--window``, ``--sizes``, ``--csv``.
 ``--quick`` runs 2 trials (1 at 1000 boxes) of 64 steps, 20 extra seeds, fewer
-small-world repeats, and leaves out substeps 16 (and substeps 8 and plugin exact_time
-at 1000 boxes). The small-world table is also written to
+small-world repeats, and leaves out substeps 16 (and substeps 8 and plugin, no partial
+steps, at 1000 boxes). The small-world table is also written to
 ``benchmarks/results/plugin_small.csv``.
 The tables are markdown; the scenes' table is also written to ``benchmarks/results/plugin.csv``
 (with the plugin's phases and counters), and every tunneled projectile (N, method,
@@ -147,7 +149,7 @@ def run_trial(world, method, seed, window, ccds):
                              physicsClientId=cid)
     if method.startswith("plugin"):
         if (cid, method) not in ccds:
-            ccds[(cid, method)] = BoxCCD(cid, exact_time=True) if "exact" in method else BoxCCD(cid)
+            ccds[(cid, method)] = BoxCCD(cid, max_partial_steps=0) if "partial" in method else BoxCCD(cid)
         step = ccds[(cid, method)].step
     else:
         def step():
@@ -265,7 +267,7 @@ def small_worlds(repeats, csv_path):
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--quick", action="store_true",
-                    help="2 trials (1 at 1000 boxes), 64-step window, no substeps 16 (nor 8, nor exact_time, "
+                    help="2 trials (1 at 1000 boxes), 64-step window, no substeps 16 (nor 8, nor no partial steps, "
                          "at 1000 boxes)")
     ap.add_argument("--seed", type=int, default=2024)
     ap.add_argument("--trials", type=int, default=None, help="trials per N (default 6; 2 with --quick)")
@@ -279,7 +281,7 @@ def main(argv=None):
     window = args.window or (64 if args.quick else 120)
     if args.extra_seeds is None:
         args.extra_seeds = 20 if args.quick else 100
-    exact = ["plugin exact_time"] if "exact_time" in inspect.signature(BoxCCD).parameters else []
+    exact = ["plugin, no partial steps"]
     methods = (["plain", "plugin"] + exact + [f"substeps {k}" for k in SUBSTEPS]
                + ["plain (maximal)", "native CCD (maximal)"])
 
@@ -293,7 +295,7 @@ def main(argv=None):
 
     n_trials = {n: (trials if n <= 100 else max(1, trials // 3)) for n in args.sizes}
     def quick_skip(n):
-        return {"substeps 16"} | ({"substeps 8", "plugin exact_time"} if n >= 1000 else set())
+        return {"substeps 16"} | ({"substeps 8", "plugin, no partial steps"} if n >= 1000 else set())
 
     bar = tqdm(total=sum(n_trials[n] * len([m for m in methods if not (args.quick and m in quick_skip(n))])
                          for n in args.sizes), desc="runs", unit="trial")
@@ -329,7 +331,7 @@ def main(argv=None):
                 steps = max(stats.steps, 1)
                 for ph in PHASES:
                     row[f"plugin_{ph}_us_per_step"] = round(1e6 * stats.seconds[ph] / steps, 1)
-                for c in ("swept_boxes", "candidate_pairs", "solver_rows", "contacts", "rewinds", "held"):
+                for c in ("swept_boxes", "candidate_pairs", "solver_rows", "contacts", "rewinds", "partial_steps"):
                     row[f"plugin_{c}"] = getattr(stats, c)
                 phase_rows.append((n, m, steps, stats))
             results.append(row)
@@ -367,15 +369,15 @@ def main(argv=None):
         per = {ph: 1e6 * st.seconds[ph] / steps for ph in PHASES}
         sweep = sum(per.values())
         prow.append((n, m, steps, *(f"{per[ph]:.0f}" for ph in PHASES), f"{sweep:.0f}", st.swept_boxes,
-                     st.candidate_pairs, st.solver_rows, st.contacts, st.rewinds, st.held))
+                     st.candidate_pairs, st.solver_rows, st.contacts, st.rewinds, st.partial_steps))
     print_table("plugin phases (us per step, mean over all trials) and counters (totals over all trials)",
                 ("boxes", "method", "steps", "state", "broad", "solve", "rewind", "sweep total",
-                 "swept", "pairs", "rows", "contacts", "rewinds", "held"), prow)
+                 "swept", "pairs", "rows", "contacts", "rewinds", "partial steps"), prow)
 
     if extra:
         print_table(f"tunneling over {len(extra_seeds)} more seeds ({args.seed + 1000}..{extra_seeds[-1]}), 10 boxes",
-                    ("method", "tunneled/shots", "us/step", "CCD rewinds", "held"),
-                    [(m, f"{nt}/{shots_}", f"{us:.0f}", st.rewinds if st else "", st.held if st else "")
+                    ("method", "tunneled/shots", "us/step", "CCD rewinds", "partial steps"),
+                    [(m, f"{nt}/{shots_}", f"{us:.0f}", st.rewinds if st else "", st.partial_steps if st else "")
                      for m, nt, shots_, us, st in extra])
         for m, nt, shots_, us, _st in extra:
             results.append(dict(n_boxes=10, method=f"{m} [extra seeds]", us_per_step_median=round(us, 1),

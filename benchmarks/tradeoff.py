@@ -18,15 +18,18 @@ timing columns are equal; ``tests/test_sweep.py`` checks it).
 
 Configurations (one knob at a time around the default):
 
-* ``BoxCCD default`` (sweep_threshold 0.25, fit_tolerance 0.05, penetration 2e-7),
+* ``BoxCCD default`` (sweep_threshold 0.25, sweep_distance 0.01 m, fit_tolerance 0.05,
+  penetration 1e-5 m, depth_tolerance 1e-3 m, max_partial_steps 8),
 * ``sweep_threshold`` 0.05, 0.5, 1, 2, 4, 8 (a box is swept when its fastest point
   moves more than this fraction of its smallest extent per step; the projectiles
   move 2..6.3 extents per step, so 4 sweeps only the faster shots and 8 none),
 * ``fit_tolerance`` 0.005, 0.5 (rotation fit split into 2, 4, .. pieces until its
   error is below this fraction of the smallest half extent),
-* ``penetration`` (the rewind skin) 2e-8, 2e-6 m,
-* ``exact_time`` True (the whole world stops at the step's earliest contact and the
-  rest of the step is simulated),
+* ``penetration`` (the overlap the world goes back to) 1e-6, 1e-4 m,
+* ``depth_tolerance`` 1e-4, 1e-2 m (a contact met inside a step that ends shallower is
+  pybullet's),
+* ``max_partial_steps`` 0, 2 (0: the bodies of such a contact go back to it on their own
+  and the step ends; pybullet resolves the impact at the next step),
 * ``reference`` = BoxCCD with fit_tolerance 1e-4 (the fine reference of the
   contact times; itself in the table),
 * pybullet ``plain``, ``substeps`` 2, 4, 8, 16, 32 (``numSubSteps``), and, on the same
@@ -47,12 +50,12 @@ Metrics per configuration:
   projectiles both runs report within one step (1/240 s) of each other, and
   ``matched/ref`` (a configuration that does not sweep a shot reports no event for
   it, or only a later contact, which is not matched),
-* rewind pose error (BoxCCD only): right after each ``ccd.step()`` returning a
-  rewound first-touch event of a projectile against the ground or wall,
-  ``p.getClosestPoints(body_a, body_b, 0.01, link_a, link_b)`` minimum distance; the
-  worst (largest |d|) is reported, and how many fall outside the expected band
-  [-1e-6, 0.001 + 1e-6] m (collision margin 0.001). In exact_time mode the rest of
-  the step is simulated after the rewind, so this is the pose after that,
+* rewind pose error (``max_partial_steps`` 0 only, where a step ends at its
+  contacts): right after each ``ccd.step()`` returning a rewound first-touch event of
+  a projectile against the ground or wall, ``p.getClosestPoints(body_a, body_b, 0.01,
+  link_a, link_b)`` minimum distance; the worst (largest |d|) is reported, and how
+  many fall outside the expected band [-1e-6, 0.001 + 1e-6] m (collision margin
+  0.001),
 * end-of-step penetration (all configurations): after every step, the minimum
   ``p.getClosestPoints(projectile, ground or wall, 0)`` distance over the
   projectiles; the deepest (most negative) value over all steps and trials. For
@@ -63,11 +66,9 @@ Metrics per configuration:
 
 Reading it: the reported contact time comes from a refit of Bullet's exact path
 over the window the conservative fit found, so ``fit_tolerance`` changes the cost
-and how many pieces are solved, not the answer. A pair that already touches when
-a step begins and presses deeper is let in up to half the thinner box's smallest
-half extent before the plugin rewinds it (see ``BoxCCD._rewind_time``), which
-bounds what the end-of-step penetration of BoxCCD can show (2.5 mm at the wall,
-5 mm at the ground here).
+and how many pieces are solved, not the answer. A contact that ends a step shallower
+than ``depth_tolerance`` is pybullet's, which bounds what the end-of-step penetration
+of BoxCCD can show.
 
 Outputs: a markdown table (stdout), ``benchmarks/results/tradeoff.csv`` and
 ``docs/tradeoff.png`` (Pareto plots, x = us/step, log: left the tunneling rate,
