@@ -40,7 +40,7 @@ from .tables import markdown
 __all__ = ["DEFAULT", "configs", "task", "sweep", "aggregate", "write_outputs", "summary_text"]
 
 MARGIN = 0.001  # pybullet's collision margin for boxes
-BAND = (-1e-6, MARGIN + 1e-6)  # where a rewound first touch should put the pair
+BAND = (-1e-5 - 1e-6, MARGIN + 1e-6)  # where a first touch (penetration 1e-5 m) should put the pair
 REF_FIT = 1e-4  # fit_tolerance of the reference run (contact times are compared with it)
 DEFAULT = dict(sweep_threshold=0.25, fit_tolerance=0.05, penetration=1e-5, depth_tolerance=1e-3,
                max_partial_steps=8)
