@@ -1,0 +1,119 @@
+"""BoxCCD against pybullet's converged physics on deterministic head-on impacts.
+
+The scene is family 1 of benchmarks/fidelity.py (``head_on_build`` of
+benchmarks/_fidelity_scenes.py): a 0.4 m cube at a static wall 0.2 m thick, no gravity,
+friction 0.5, restitution e on both bodies (pybullet multiplies them), the cube's front
+reaching the wall ``frac`` of the way into its third step of 1/240 s.
+
+Every target is a reference computed here: the same scene in plain pybullet at dt/512,
+averaged over 8 offsets of its step grid (pybullet's rebound depends on where in its step
+the touch falls: its contact position correction adds up to 8 % of the impact speed,
+linearly in that phase, at every step size; the phase mean converges, a single fine run
+does not), and checked to be converged: at dt/1024 it moves by less than the tolerance.
+
+Asserted of BoxCCD (``BoxCCD(cid).step()`` at 1/240 s): its final velocity within the
+tolerance (of the impact speed) of the reference's, the cube not through the wall, no final
+speed above 2 max(|v_plain|, |v_ref|) + 2 m/s, and no step-end penetration deeper than
+max(2 x the reference's, 1 cm). Each scene is one plain pybullet fails: it tunnels (300 m/s)
+or ends a step deeper in the wall than that bound (50 m/s); that is asserted too.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+
+import numpy as np
+import pybullet as p
+import pytest
+
+from bullet_boxccd import BoxCCD  # before any world is built: it journals pybullet's calls
+
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "benchmarks"))
+from _fidelity_scenes import World, head_on_build, head_on_measure  # noqa: E402
+
+DT = 1 / 240
+K = 512  # the reference's steps per step of DT (the convergence check: 2 K)
+PHASES = 8
+
+# name: (variant of head_on_build, speed m/s, frac of the step at which the front reaches the wall, tolerance).
+# frac: at 300 m/s plain pybullet's cube ends the step past the wall; at 50 m/s 10-19 cm into it.
+CASES = {
+    "e=1 300 m/s": ("e=1 straight", 300.0, 0.3, 0.03),
+    "e=0.5 300 m/s": ("e=0.5 straight", 300.0, 0.3, 0.03),
+    "e=0 300 m/s": ("e=0 straight", 300.0, 0.3, 0.03),
+    "e=1 tilted 10 deg 50 m/s": ("e=1 tilt10", 50.0, 0.1, 0.15),
+    "e=0.5 tilted 10 deg 50 m/s": ("e=0.5 tilt10", 50.0, 0.1, 0.15),
+    "e=0 tilted 10 deg 50 m/s": ("e=0 tilt10", 50.0, 0.1, 0.15),
+    "e=1 spinning 20 rad/s 50 m/s": ("e=1 spin20", 50.0, 0.5, 0.15),
+    "e=0.5 spinning 20 rad/s 50 m/s": ("e=0.5 spin20", 50.0, 0.5, 0.15),
+    "e=0 spinning 20 rad/s 50 m/s": ("e=0 spin20", 50.0, 0.5, 0.15),
+}
+
+
+def run(cid, case, method, fine=1, phase=0.0):
+    """One run: (final velocity, tunneled, deepest step-end penetration into the wall).
+    method: "plain", "boxccd" or "ref" (plain at DT / fine, its grid offset by phase of a step)."""
+    variant, speed, frac, _ = CASES[case]
+    p.resetSimulation(physicsClientId=cid)
+    h = DT / fine
+    p.setPhysicsEngineParameter(fixedTimeStep=h, numSubSteps=0, physicsClientId=cid)
+    w = World(cid, DT, h)
+    s = head_on_build(w, np.random.default_rng(0), variant, speed=speed, frac=frac, spin_axis=(0.0, 0.0, 1.0))
+    step = BoxCCD(cid).step if method == "boxccd" else (lambda: p.stepSimulation(physicsClientId=cid))
+    if phase:
+        p.setPhysicsEngineParameter(fixedTimeStep=phase * h, physicsClientId=cid)
+        step()
+        p.setPhysicsEngineParameter(fixedTimeStep=h, physicsClientId=cid)
+    deepest = 0.0
+    for _ in range(s.steps):
+        for _ in range(fine):
+            step()
+        deepest = max(deepest, w.depth(s.cube, s.wall))
+    m = head_on_measure(w, s)
+    return m["v"], m["tunneled"], deepest
+
+
+def reference(cid, case, fine):
+    """The phase mean of the final velocity at DT / fine, the deepest step-end penetration
+    over the phases, whether any phase tunneled, and the phases' final velocities."""
+    runs = [run(cid, case, "ref", fine, j / PHASES) for j in range(PHASES)]
+    vs = np.array([r[0] for r in runs])
+    return vs.mean(axis=0), max(r[2] for r in runs), any(r[1] for r in runs), vs
+
+
+@pytest.fixture(scope="module")
+def refs(cid):
+    """case -> (reference at DT/K, at DT/2K): computed once for the module."""
+    return {case: (reference(cid, case, K), reference(cid, case, 2 * K)) for case in CASES}
+
+
+@pytest.mark.parametrize("case", list(CASES))
+def test_the_reference_is_converged(refs, case):
+    (v_ref, deep_ref, through_ref, _), (v_ref2, _, through_ref2, _) = refs[case]
+    speed, tol = CASES[case][1], CASES[case][3]
+    assert np.linalg.norm(v_ref2 - v_ref) / speed < tol
+    assert not through_ref and not through_ref2
+    assert deep_ref < 0.01  # the fine step ends barely inside the wall
+
+
+@pytest.mark.parametrize("case", list(CASES))
+def test_plain_pybullet_fails_this_scene(cid, refs, case):
+    """The scene is meaningful: plain pybullet at DT tunnels or ends a step too deep."""
+    (_, deep_ref, _, _), _ = refs[case]
+    _, through, deepest = run(cid, case, "plain")
+    assert through or deepest > max(2.0 * deep_ref, 0.01)
+
+
+@pytest.mark.parametrize("case", list(CASES))
+def test_boxccd_ends_like_the_converged_reference(cid, refs, case):
+    (v_ref, deep_ref, _, v_phases), _ = refs[case]
+    speed, tol = CASES[case][1], CASES[case][3]
+    v_plain, _, _ = run(cid, case, "plain")
+    v, through, deepest = run(cid, case, "boxccd")
+    assert not through
+    assert np.linalg.norm(v) <= 2.0 * max(np.linalg.norm(v_plain), np.linalg.norm(v_ref)) + 2.0
+    assert deepest <= max(2.0 * deep_ref, 0.01), f"step-end penetration {deepest:.4f} m"
+    err = np.linalg.norm(v - v_ref) / speed
+    assert err <= tol, (f"|v - v_ref| / speed = {err:.3f} (v = {np.round(v, 2)}, v_ref = {np.round(v_ref, 2)}, "
+                        f"the phases' vx from {v_phases[:, 0].min():.2f} to {v_phases[:, 0].max():.2f})")
