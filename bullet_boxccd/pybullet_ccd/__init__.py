@@ -125,7 +125,9 @@ class BoxCCD:
         self._moves_seen = self.world.journal.last_move  # moves made while building the world are not sweeps
         self._quiet, self._epoch = False, -1  # whether a step may skip every check (see step)
         self._known = False  # whether the frame-state rows hold the velocities the next step starts from
-        self._struck = set()  # frames of the contact the world was taken back to, as the partial step began
+        # Frames of the contact the world was taken back to as the partial step began (acted),
+        # and those of them struck by an impact then (its impulse acts whole at that start).
+        self._acted, self._struck = set(), set()
         self._sync()
 
     # ------------------------------------------------------------ the world
@@ -249,7 +251,7 @@ class BoxCCD:
         self._known &= self.world.journal.last_move <= self._moves_seen  # the user changed no velocity
         moved_static, with_velocity, user_moved = self._user_moves()
         t_start, elapsed, piece, events = time.perf_counter(), 0.0, h, []
-        self._struck = set()
+        self._acted, self._struck = set(), set()
         try:
             for k in range(1 + self.max_partial_steps):
                 self._state.begin_kinematic(moved_static, with_velocity)
@@ -257,7 +259,7 @@ class BoxCCD:
                     self._state.begin(self._known)
                     raw.stepSimulation(physicsClientId=self.cid)
                     if k:
-                        piece = self._within_clamp(piece)
+                        piece = self._within_clamp(piece, h)
                 t_sim = time.perf_counter()
                 self.stats.seconds["step"] += t_sim - t_start
                 back = k < self.max_partial_steps
@@ -272,29 +274,39 @@ class BoxCCD:
                 moved_static, user_moved = [], set()
                 piece = h - elapsed if k + 1 == self.max_partial_steps else self._piece(h - elapsed)
                 self.stats.partial_steps += 1
-                raw.setPhysicsEngineParameter(fixedTimeStep=piece, physicsClientId=self.cid)
-                replay_impulses(self.cid, self.world.journal.impulses)  # pybullet cleared the user's forces
+                self._take(piece, h)
                 t_start = time.perf_counter()
         finally:
-            if piece != h:
-                raw.setPhysicsEngineParameter(fixedTimeStep=h, physicsClientId=self.cid)
+            if piece != h or elapsed:
+                raw.setPhysicsEngineParameter(fixedTimeStep=h, contactERP=self.world.journal.contact_erp,
+                                              physicsClientId=self.cid)
         return events
 
+    def _take(self, piece, h):
+        """Set the world to take a partial step of ``piece`` seconds of the user's step of h:
+        its contact ERP scaled by piece / h, so that the speed at which pybullet's solver
+        pushes an overlap out (ERP times depth over the step) is the user's step's, not
+        larger by h / piece; and the user's forces, which pybullet cleared, given again."""
+        raw.setPhysicsEngineParameter(fixedTimeStep=piece, contactERP=self.world.journal.contact_erp * piece / h,
+                                      physicsClientId=self.cid)
+        replay_impulses(self.cid, self.world.journal.impulses)
+
     def _piece(self, rest):
-        """The next partial step's length: the rest of the step, or less, so that no body
-        turns by more than Bullet's clamp of pi/4 a step in it (above the clamp, the turn
-        Bullet integrates is slower than the spin its contact solver sees: a spinning box
-        would press on into what it strikes)."""
-        spin = self._spin()
-        return rest if spin * rest <= _CLAMP else _CLAMP / spin
+        """The next partial step's length: the rest of the step, or an even share of it, so
+        that no body of the contact the world was taken back to turns by more than Bullet's
+        clamp of pi/4 a step in it (above the clamp, the turn Bullet integrates is slower
+        than the spin its contact solver sees: a spinning box would press on into what it
+        strikes)."""
+        return rest / math.ceil(self._spin() * rest / _CLAMP - 1e-9) if self._spin() * rest > _CLAMP else rest
 
     def _spin(self):
-        st = self._state
-        return float(np.max(np.linalg.norm(st.rows[st.moving, ANGULAR_VELOCITY], axis=1))) if st.moving else 0.0
+        """The fastest spin (rad/s) of the frames of the contact the world was taken back to."""
+        frames = list(self._acted)
+        return float(np.max(np.linalg.norm(self._state.rows[frames, ANGULAR_VELOCITY], axis=1))) if frames else 0.0
 
-    def _within_clamp(self, piece):
+    def _within_clamp(self, piece, h):
         """After a partial step of ``piece`` seconds: if the impact at its start spun a body
-        past Bullet's turn clamp in it, the world goes back to the partial step's start (every
+        of the contact past Bullet's turn clamp in it, the world goes back to the partial step's start (every
         body where its path has it then, with the velocities it started with) and takes a
         partial step short enough for that spin, once. Returns the length taken."""
         st = self._state
@@ -305,9 +317,8 @@ class BoxCCD:
         self._chains.read(piece, st, True)
         self.contacts.world_to_start(self.world.tables, st, piece)
         self._chains.stop_all(0.0, st)
-        piece = _CLAMP / spin
-        raw.setPhysicsEngineParameter(fixedTimeStep=piece, physicsClientId=self.cid)
-        replay_impulses(self.cid, self.world.journal.impulses)
+        piece /= math.ceil(spin * piece / _CLAMP)
+        self._take(piece, h)
         st.begin(True)
         raw.stepSimulation(physicsClientId=self.cid)
         st.fresh = set()  # the poses read or placed before this step are not its end
@@ -338,12 +349,15 @@ class BoxCCD:
         if back:
             # One time order: the free bodies' contacts up to the earliest articulated one
             # that needs the world back; the world then goes back to the earlier of the two.
-            tau_links, struck_links = self._chains.act_at(found)
+            tau_links, links_acted, links_impact = self._chains.act_at(found)
             events, tau = self.contacts.resolve(sw, jw, t, st, h, user_moved, self._gravity, True, tau_links,
                                                 self._struck)
             if tau < 1.0:
                 self._chains.stop_all(tau, st, self._struck)
-                self._struck = self.contacts.struck or struck_links
+                if self.contacts.acted:
+                    self._acted, self._struck = self.contacts.acted, self.contacts.struck
+                else:
+                    self._acted, self._struck = links_acted, links_acted if links_impact else set()
                 self.stats.rewinds += 1
             events = self._chains.events(found, tau, tau if tau < 1.0 else None) + events
         else:

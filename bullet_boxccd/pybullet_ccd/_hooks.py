@@ -38,6 +38,9 @@ from .. import _core
 __all__ = ["Journal", "journal", "raw", "install", "new_serial", "last_serial", "replay_impulses", "WRAPPED",
            "SIGNATURES", "bind", "shape_type", "MjcfLoad", "OR_MODE"]
 
+# pybullet's default contactERP (the share of a contact's penetration its solver removes in a
+# step, as a velocity of erp depth / dt): measured, setting 0.08 leaves every world bit-identical.
+CONTACT_ERP = 0.08
 # pybullet's defaults (PhysicsServerCommandProcessor): collisionFilterMode 1 ("group A
 # & mask B, OR group B & mask A"); a new world starts with it.
 OR_MODE = 1
@@ -86,6 +89,7 @@ class Journal:
     created: set = field(default_factory=set)  # bodies made through the wrapped functions (provenance)
     params: int = 0  # fixedTimeStep / numSubSteps / gravity changed
     num_substeps: int = 0  # as last set through setPhysicsEngineParameter (0: never set)
+    contact_erp: float = CONTACT_ERP  # as last set through setPhysicsEngineParameter (pybullet reports none)
     # Collision filters, as pybullet's collision filter plugin keeps them.
     pair_rules: dict = field(default_factory=dict)  # (body, link, body, link) in pybullet's key order -> enable
     group_mask: dict = field(default_factory=dict)  # (body, link) -> (group, mask) set by the user
@@ -513,6 +517,8 @@ def _set_engine_parameter(cid, a, result):
     substeps = a.get("numSubSteps")
     if substeps is not None:
         j.num_substeps = int(substeps)
+    if a.get("contactERP") is not None:
+        j.contact_erp = float(a["contactERP"])
     if substeps is not None or a.get("fixedTimeStep") is not None:
         j.params = next(_serial)
 

@@ -184,12 +184,12 @@ class Articulated:
     @staticmethod
     def act_at(found):
         """(the earliest time one of ``find``'s contacts needs the world back at (1 if
-        none), the frames of that contact)."""
+        none), the frames of that contact, whether it is an impact: met inside the step)."""
         acting = [x for x in found if x[1] is not None]
         if not acting:
-            return 1.0, set()
+            return 1.0, set(), False
         first = min(acting, key=lambda x: x[1])
-        return first[1], {first[6], first[7]}
+        return first[1], {first[6], first[7]}, not first[3]
 
     def stop_each(self, found, state, dt, stats):
         """No partial step left: stop each body whose pair needs it at its own time, or push

@@ -174,9 +174,10 @@ class Contacts:
         go back on their own and tau is 1. ``user_moved``: frames the user teleported since
         the last step (never pushed: their pose is the user's); ``struck``: frames whose
         contact the world was taken back to at the start of this (partial) step. The frames
-        of the contact the world goes back to are left in ``self.struck``."""
+        of the contact the world goes back to are left in ``self.acted`` (and in ``self.struck``
+        if it is an impact: met inside the step)."""
         kinematic = set(state.kinematic)
-        events, self.struck = [], set()
+        events, self.struck, self.acted = [], set(), set()
         pushed = self._jumps(jw, tables, state, dt, kinematic, user_moved, events) if jw is not None else {}
         paths = _Paths(sw, tables, state, dt, kinematic) if sw is not None and sw.hits else None
         for d, (k, start, v) in pushed.items():  # then it rides its kinematic body through the step
@@ -279,7 +280,11 @@ class Contacts:
                 info["action"] = None  # out of budget: pybullet's, from here on
             if back and info["action"] == "back":
                 self._report(paths, i, j, info, True, events)
-                self.struck = {int(paths.frame[i]), int(paths.frame[j])}
+                # A contact met inside the step is an impact: its impulse acts whole as the
+                # partial step begins. The next press of a pair already touching is not (its
+                # impulse kept whole at every go back would pump energy into the pair).
+                self.acted = {int(paths.frame[i]), int(paths.frame[j])}
+                self.struck = set() if info["initial"] else self.acted
                 return tau_r
             changed = self._act(paths, i, j, tau_r, info, user_moved)
             self._report(paths, i, j, info, bool(changed), events)
