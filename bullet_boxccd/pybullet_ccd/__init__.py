@@ -251,7 +251,7 @@ class BoxCCD:
         self._known &= self.world.journal.last_move <= self._moves_seen  # the user changed no velocity
         moved_static, with_velocity, user_moved = self._user_moves()
         t_start, elapsed, piece, events = time.perf_counter(), 0.0, h, []
-        self._acted, self._struck = set(), set()
+        self._acted, self._struck, self._presses = set(), set(), {}
         try:
             for k in range(1 + self.max_partial_steps):
                 self._state.begin_kinematic(moved_static, with_velocity)
@@ -349,15 +349,25 @@ class BoxCCD:
         if back:
             # One time order: the free bodies' contacts up to the earliest articulated one
             # that needs the world back; the world then goes back to the earlier of the two.
+            # A link pair still pressing in after the world went back to it twice in this step
+            # is one pybullet's solver does not hold: its body stops there on its own.
+            again = [x for x in found if x[1] is not None and x[3] and self._presses.get((x[6], x[7]), 0) >= 2]
+            if again:
+                self._chains.stop_each(again, st, h, self.stats)
+                found = [x for x in found if not any(x is y for y in again)]
             tau_links, links_acted, links_impact = self._chains.act_at(found)
             events, tau = self.contacts.resolve(sw, jw, t, st, h, user_moved, self._gravity, True, tau_links,
-                                                self._struck)
+                                                self._struck, self._presses)
             if tau < 1.0:
                 self._chains.stop_all(tau, st, self._struck)
                 if self.contacts.acted:
                     self._acted, self._struck = self.contacts.acted, self.contacts.struck
                 else:
                     self._acted, self._struck = links_acted, links_acted if links_impact else set()
+                    first = min((x for x in found if x[1] == tau_links), key=lambda x: x[0])
+                    if first[3]:
+                        key = (first[6], first[7])
+                        self._presses[key] = self._presses.get(key, 0) + 1
                 self.stats.rewinds += 1
             events = self._chains.events(found, tau, tau if tau < 1.0 else None) + events
         else:

@@ -192,8 +192,8 @@ class Articulated:
         return first[1], {first[6], first[7]}, not first[3]
 
     def stop_each(self, found, state, dt, stats):
-        """No partial step left: stop each body whose pair needs it at its own time, or push
-        the free box a link presses into. Returns ({body: tau it was stopped at}, {free
+        """Stop each body whose pair needs it at its own time (with its velocities there), or
+        push the free box a link presses into. Returns ({body: tau it was stopped at}, {free
         frames pushed})."""
         t = self.tables
         stops, pushes = {}, []
@@ -208,7 +208,7 @@ class Articulated:
             if partner is not None and partner is not rec:
                 stops[partner.body] = min(stops.get(partner.body, act), act)
         for b, tau in stops.items():
-            self.stop(self.bodies[b], tau, state)
+            self.stop(self.bodies[b], tau, state, back=True)
         stats.rewinds += len(stops)
         pushed = set()
         for tau, rec, f, g, pair in pushes:
@@ -320,9 +320,10 @@ class Articulated:
     # ------------------------------------------------------------ stopping
     def stop(self, rec, tau, state, back=False):
         """Put the body where its path has it at tau (base pose, joint positions); its
-        frames stand still from there. With ``back`` (the rest of the step is simulated
-        again), its velocities are those between its velocities before and after the step
-        in proportion (after the step if those before are not known); else those after."""
+        frames stand still from there. With ``back``, its velocities are those it had at
+        tau: between its velocities before and after the step, in proportion (after the
+        step if those before are not known); else those after (a body struck as the step
+        began took its impulse whole then)."""
         cid, m = self.cid, rec.motion
         base = m.base_pose(tau)
         twist, qdot = rec.base_state[7:13].copy(), rec.qdot

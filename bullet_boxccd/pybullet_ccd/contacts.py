@@ -49,6 +49,8 @@ from .world import FREE
 __all__ = ["Contacts", "place", "bounce"]
 
 _MOVING, _STOPPED, _CARRIED = 0, 1, 2
+# Times in a step the world goes back to a pair that was touching and pressed in anyway.
+_PRESSES = 2
 _IDENTITY = np.eye(4).reshape(-1)
 
 
@@ -124,10 +126,17 @@ class _Paths:
         return pose_matrix(p[:3], p[3:])
 
     def stop(self, f, tau):
-        """Frame f stands still from tau on (with the velocity it had)."""
+        """Frame f stands still from tau on, with the velocity it had at tau: between its
+        velocities before and after the step, in proportion (after, if those before are not
+        known): kept from after the step, a stopped body would gain a step's gravity every
+        step it stands."""
         tr = self.track[f]
         tr.frozen = self.com(f, tau)
-        tr.velocity = self.twist(f)
+        v, w = self.twist(f)
+        if self.state.twist0 is not None and tr.velocity is None:
+            v0, w0 = self.state.twist0[f, :3], self.state.twist0[f, 3:]
+            v, w = v0 + tau * (v - v0), w0 + tau * (w - w0)
+        tr.velocity = (v, w)
         for r in tr.rows:
             X = _core.row_poses(self.rows[[r]], np.array([tau]))[0]
             self.rows[r] = _still_row(X, self.rows[r])
@@ -165,7 +174,7 @@ class Contacts:
         self.cid, self.penetration, self.depth_tolerance = cid, penetration, depth_tolerance
         self.fit_tolerance, self.tolerances, self.stats = fit_tolerance, tolerances, stats
 
-    def resolve(self, sw, jw, tables, state, dt, user_moved, gravity, back=True, horizon=1.0, struck=()):
+    def resolve(self, sw, jw, tables, state, dt, user_moved, gravity, back=True, horizon=1.0, struck=(), presses=None):
         """Events of the step's sweep ``sw`` and of the kinematic jumps' sweep ``jw`` (either
         may be None), with what they need applied to pybullet. Returns (events, tau): with
         ``back``, tau is the earliest time the world is taken back to (1 if none; at most
@@ -173,11 +182,13 @@ class Contacts:
         it then, and the events are those up to it; without, the bodies of each such contact
         go back on their own and tau is 1. ``user_moved``: frames the user teleported since
         the last step (never pushed: their pose is the user's); ``struck``: frames whose
-        contact the world was taken back to at the start of this (partial) step. The frames
+        contact the world was taken back to at the start of this (partial) step; ``presses``:
+        {pair of frames: times the world went back to it pressing in this step}. The frames
         of the contact the world goes back to are left in ``self.acted`` (and in ``self.struck``
         if it is an impact: met inside the step)."""
         kinematic = set(state.kinematic)
         events, self.struck, self.acted = [], set(), set()
+        self._presses = {} if presses is None else presses
         pushed = self._jumps(jw, tables, state, dt, kinematic, user_moved, events) if jw is not None else {}
         paths = _Paths(sw, tables, state, dt, kinematic) if sw is not None and sw.hits else None
         for d, (k, start, v) in pushed.items():  # then it rides its kinematic body through the step
@@ -212,7 +223,7 @@ class Contacts:
     def _world_to(self, paths, tables, state, dt, gravity, tau, struck):
         """Every free body where its path has it at tau, and every kinematic frame with a
         velocity where Bullet's path has it; carried bodies where their ride ends (the rest
-        of the step would carry them no further).
+        of the step would carry them no further), stopped ones where they stopped.
 
         The rest of the step is simulated again and adds its share of gravity, contacts and
         friction again, so a free body leaves tau with the velocity between its velocities
@@ -222,10 +233,10 @@ class Contacts:
         step is not known)."""
         track = paths.track if paths is not None else {}
         carried = [f for f, tr in track.items() if tr.status == _CARRIED]
-        # In a time order that stops at its first action no other path changed: each frame
-        # is on Bullet's path (a fixed base the user gave a velocity too).
+        stopped = [f for f, tr in track.items() if tr.status == _STOPPED and tr.stop_time <= tau]
+        # Every other frame is on Bullet's path (a fixed base the user gave a velocity too).
         frames = np.flatnonzero(tables.kind == FREE)
-        frames = np.concatenate([frames[~np.isin(frames, carried)],
+        frames = np.concatenate([frames[~np.isin(frames, carried + stopped)],
                                  [f for f in state.with_velocity if f in state.kinematic]]).astype(np.int64)
         rows = state.rows[frames]
         v, w = rows[:, VELOCITY].copy(), rows[:, ANGULAR_VELOCITY].copy()
@@ -247,7 +258,7 @@ class Contacts:
         poses = _core.frame_poses(state.rows, dt, frames, np.full(len(frames), tau))
         for f, pose, vf, wf in zip(frames.tolist(), poses, v, w):
             place(self.cid, tables, state, f, pose, vf, wf)
-        for f in carried:
+        for f in carried + stopped:
             vf, wf = paths.twist(f)
             place(self.cid, tables, state, f, pose7(paths.com(f, 1.0)), vf, wf)
 
@@ -283,7 +294,10 @@ class Contacts:
                 # A contact met inside the step is an impact: its impulse acts whole as the
                 # partial step begins. The next press of a pair already touching is not (its
                 # impulse kept whole at every go back would pump energy into the pair).
-                self.acted = {int(paths.frame[i]), int(paths.frame[j])}
+                key = (int(paths.frame[i]), int(paths.frame[j]))
+                if info["initial"]:
+                    self._presses[key] = self._presses.get(key, 0) + 1
+                self.acted = set(key)
                 self.struck = set() if info["initial"] else self.acted
                 return tau_r
             changed = self._act(paths, i, j, tau_r, info, user_moved)
@@ -340,7 +354,10 @@ class Contacts:
                 return info
             action = "push"
         elif paths.stoppable(fa) or paths.stoppable(fb) or (back and (push_a or push_b)):
-            action = "back" if back else "stop"
+            # A pair still pressing in after the world went back to it twice in this step is
+            # one pybullet's solver does not hold: going back again would only repeat that.
+            again = initial and self._presses.get((int(fa), int(fb)), 0) >= _PRESSES
+            action = "back" if back and not again else "stop"
         else:
             return info
         end_depth = float(_core.path_depth(w, np.ones(1))[0])
