@@ -272,15 +272,25 @@ class Contacts:
             for r in (i, j):
                 pairs_of.setdefault(paths.frame[r], []).append(q)
         index = sw.pair_index
-        heap = []
-        for i, j, tau in sw.hits:
-            self._queue(heap, paths, index[(i, j)], i, j, 0.0, tau, back)
+        # The sweep's first touches are queued at their touch and judged when they come up
+        # (a contact's action is never before its touch): those after the step's first
+        # action are not judged at all when the world goes back there.
+        heap = [(tau, k, index[(i, j)], i, j, (0, 0), None) for k, (i, j, tau) in enumerate(sw.hits)]
+        heapq.heapify(heap)
         budget = 8 * len(paths.track) + 8  # a cap on actions: each one changes a path
         while heap:
             tau_r, _, q, i, j, versions, info = heapq.heappop(heap)
             if back and tau_r > horizon:
                 break
             ta, tb = paths.track[paths.frame[i]], paths.track[paths.frame[j]]
+            if info is None:  # a first touch of the sweep, on Bullet's paths unless one changed since
+                if (ta.version, tb.version) == (0, 0):
+                    info = self._judge(paths, i, j, 0.0, tau_r, back)
+                    if info["act_at"] > tau_r:
+                        heapq.heappush(heap, (info["act_at"], id(info), q, i, j, versions, info))
+                        continue
+                else:
+                    versions = (-1, -1)
             if versions != (ta.version, tb.version):
                 since = max(ta.since, tb.since)
                 touch = self._first_touch(paths, i, j, since)
