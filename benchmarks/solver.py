@@ -9,7 +9,7 @@ and class (the pairs our solver reports hitting, and those that stay apart):
 
 * time per pair of ``time_of_impact`` (a Python loop of single calls over the
   class's pairs that drops each result; and one that keeps every Contact, so
-  that the free list of contacts has none to refill), of
+  that no contact is freed while the loop runs), of
   ``time_of_impact_batch`` (one call on all of them, one core), of the batch
   split over 2 Python threads (it scales only because the core releases the
   GIL), and of python-fcl's conservative advancement
@@ -93,7 +93,7 @@ def timing_jobs(p, fcl_items):
             time_of_impact(*o)
         return len(objs)
 
-    def single_kept():  # every Contact kept: the free list has none to refill
+    def single_kept():  # every Contact kept: none is freed while the loop runs
         kept = [time_of_impact(*o) for o in objs]
         return len(kept)
 
@@ -222,7 +222,7 @@ def print_table(rows):
     print()
     print("Times per pair: the minimum over the interleaved rounds (the medians are in the CSV); ratio = FCL trans "
           "/ ours (single: a Python loop of time_of_impact that drops each result, like FCL's; single, kept: one that "
-          "keeps every Contact, so that none is refilled from the free list; batch: one time_of_impact_batch call). "
+          "keeps every Contact, so that none is freed while it runs; batch: one time_of_impact_batch call). "
           "'batch, 2 threads': speed-up of the batch split over two Python threads. Misses and false hits against "
           "the dense reference on the quadratic motion (FCL's spinning motions follow other paths: the CSV also "
           "counts them against the rigid motion).")

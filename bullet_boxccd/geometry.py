@@ -1,4 +1,4 @@
-"""Boxes and the seed's names for their features.
+"""Boxes and the BMS algorithm's names for their features.
 
 A box is given by two corners in its own frame, ``lo = (X, Y, Z)`` and
 ``hi = (X', Y', Z')`` as in the seed. Faces are named after their planes
@@ -42,8 +42,8 @@ class Box:
 
     lo: np.ndarray
     hi: np.ndarray
-    # The validated copy for the core, in a slot: time_of_impact reads it there
-    # directly (no attribute lookup); the fields stay in the instance dict.
+    # The validated copy for the core, in a slot (time_of_impact fetches it by name,
+    # for subclasses too); the fields stay in the instance dict.
     __slots__ = ("_data", "__dict__")
 
     def __post_init__(self):

@@ -1,17 +1,17 @@
 """The Python face of the compiled BMS solver.
 
-t runs over ``t_range = (t_min, t_max)``. Box A plays the seed's static box S,
+t runs over ``t_range = (t_min, t_max)``. Box A plays the BMS algorithm's static box S,
 box B its moving box M (both may move). Contacts and planes are in world
 coordinates. The Minkowski difference D(t) = A(t) + (-B(t)) contains the origin
-exactly when the boxes intersect; its 30 facets (the seed's BMS planes) are
+exactly when the boxes intersect; its 30 facets (the BMS planes) are
 
 * ``OV``: a face of A against a vertex of B (vertex of S's sphere / octant of M's),
 * ``VO``: a face of B against a vertex of A,
 * ``EE``: an edge of A against an edge of B (18 of them).
 
-A facet's outward normal points from A towards B. See ``_core/box_ccd.hpp`` for
+A facet's outward normal points from A towards B. See ``_core/solver/box_ccd.hpp`` for
 the map of the core, ``Tolerances`` for the caller's tolerances and
-``_core/constants.hpp`` for every fixed constant. Every query says what happened
+``_core/solver/constants.hpp`` for every fixed constant. Every query says what happened
 (``Outcome``): a contact, no contact, or a degraded answer (a cap reached, roots
 closer than doubles can separate), never a degraded answer dressed as a hit.
 """
@@ -61,13 +61,13 @@ __all__ = [
 ]
 
 
-_CORE_DEFAULTS = _core.Tolerances()  # the defaults are defined once, in _core/constants.hpp
+_CORE_DEFAULTS = _core.Tolerances()  # the defaults are defined once, in _core/solver/constants.hpp
 
 
 @dataclass(frozen=True)
 class Tolerances:
     """The caller's tolerances, in one frozen object (every fixed constant of the
-    solver is in ``_core/constants.hpp``, each with its reason).
+    solver is in ``_core/solver/constants.hpp``, each with its reason).
 
     Guarantee: a reported contact time t is never later than the true first
     contact of the motions as given, and a pair that comes within
@@ -149,12 +149,15 @@ class Feature(NamedTuple):
     b: str
 
 
-class Contact(NamedTuple):
+class Contact(_core.ContactCore):
     """First contact of two boxes.
 
-    The core keeps a free list of contacts: one that nobody holds any more (with its
-    arrays, unless someone holds or changed them) is refilled by a later call. A
-    contact or array you hold never changes.
+    A read-only record that behaves like the NamedTuple ``Contact(t, point, normal,
+    feature, initial, outcome)``: fields by name, by position and by unpacking,
+    ``_fields``, ``_asdict``, ``_replace``, ``_make``, equality with contacts and
+    tuples of the same fields, pickling. The core builds contacts itself (no Python
+    code runs per hit) and makes ``point`` and ``normal`` when first read; a contact
+    always gives the same arrays, and a contact or array you hold never changes.
 
     Attributes
     ----------
@@ -179,12 +182,57 @@ class Contact(NamedTuple):
         path. Never ``SEPARATED`` (that is ``None``).
     """
 
-    t: float
-    point: np.ndarray
-    normal: np.ndarray
-    feature: Optional[Feature]
-    initial: bool
-    outcome: Outcome
+    __slots__ = ()
+    _fields = ("t", "point", "normal", "feature", "initial", "outcome")
+    _field_defaults: dict = {}
+    __match_args__ = _fields
+
+    def __iter__(self):
+        return iter((self.t, self.point, self.normal, self.feature, self.initial, self.outcome))
+
+    def __len__(self) -> int:
+        return 6
+
+    def __getitem__(self, index):
+        return tuple(self)[index]
+
+    def __eq__(self, other):
+        if isinstance(other, (Contact, tuple)):
+            return tuple(self) == tuple(other)
+        return NotImplemented
+
+    def __hash__(self):
+        return hash(tuple(self))
+
+    def __repr__(self) -> str:
+        return f"{type(self).__name__}(" + ", ".join(f"{k}={v!r}" for k, v in zip(self._fields, self)) + ")"
+
+    def __reduce__(self):
+        return type(self), tuple(self)
+
+    def _asdict(self) -> dict:
+        return dict(zip(self._fields, self))
+
+    def _replace(self, **changes) -> Contact:
+        fields = self._asdict()
+        unexpected = set(changes) - set(fields)
+        if unexpected:
+            raise ValueError(f"Got unexpected field names: {sorted(unexpected)!r}")
+        fields.update(changes)
+        return type(self)(**fields)
+
+    @classmethod
+    def _make(cls, iterable) -> Contact:
+        values = tuple(iterable)
+        if len(values) != 6:
+            raise TypeError(f"Expected 6 arguments, got {len(values)}")
+        return cls(*values)
+
+    def count(self, value) -> int:
+        return tuple(self).count(value)
+
+    def index(self, value, *args) -> int:
+        return tuple(self).index(value, *args)
 
 
 # The core builds Contact and Feature instances itself (no Python code runs per hit).

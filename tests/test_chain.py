@@ -1,4 +1,4 @@
-"""Link paths (_core/chain.hpp, pybullet_ccd/chain.py) against pybullet itself, and
+"""Link paths (_core/paths/chain.hpp, pybullet_ccd/chain.py) against pybullet itself, and
 their fits and first touches against dense sampling.
 
 * Bullet's integration rules: every link's frame rebuilt at tau = 0 from the state

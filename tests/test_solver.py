@@ -395,7 +395,7 @@ def test_every_call_form_gives_the_python_functions_answer():
 
 def test_boxes_and_motions_pickle_and_subclass():
     """Boxes and motions travel by pickle (multiprocessing, Ray) and solve the same after;
-    a subclass (whose core data time_of_impact looks up by name, not at the slot) too."""
+    a subclass (whose core data time_of_impact fetches by name, as for the base class) too."""
     m_b = QuadraticMotion.ballistic((5.0, 0.3, 0.2), (-10.0, 0.0, 0.0))
     want = time_of_impact(CUBE, STATIC, CUBE, m_b)
     assert abs(want.t - 0.4) < 1e-11  # faces meet at 5 - 10 t = 1
@@ -415,8 +415,8 @@ def test_boxes_and_motions_pickle_and_subclass():
 
 
 def test_contacts_behave_like_their_named_tuples():
-    """The core builds Contact and Feature itself: they must compare, hash, pickle and
-    convert like instances made in Python."""
+    """The core builds Contact and Feature itself (a Contact's arrays when first read):
+    they must compare, hash, pickle, unpack and convert like the NamedTuples they were."""
     c = time_of_impact(CUBE, STATIC, CUBE, QuadraticMotion.ballistic((5.0, 0.3, 0.2), (-10.0, 0.0, 0.0)))
     assert abs(c.t - 0.4) < 1e-11 and c.feature == ("OV", "X'", "X")  # faces meet at 5 - 10 t = 1
     f = Feature(*c.feature)
@@ -424,14 +424,28 @@ def test_contacts_behave_like_their_named_tuples():
     assert c.feature == f and hash(c.feature) == hash(f) and {f: 1}[c.feature] == 1
     assert c._asdict()["t"] == c.t and c._replace(t=0.0).t == 0.0 and repr(c).startswith("Contact(t=")
     back = pickle.loads(pickle.dumps(c))
-    assert back.t == c.t and back.feature == c.feature and np.array_equal(back.point, c.point)
+    assert type(back) is Contact and back.t == c.t and back.feature == c.feature and np.array_equal(back.point, c.point)
     assert c.point.flags.owndata and c.point.shape == (3,) and c.normal.dtype == np.float64
+    assert c.point is c.point and c.normal is c.normal  # made once, on first read
+    t, point, normal, feature, initial, outcome = c
+    assert (t, feature, initial, outcome) == (c.t, c.feature, c.initial, c.outcome) and point is c.point
+    assert len(c) == 6 and c[0] == c.t and c[-1] is c.outcome and c[1:3] == (c.point, c.normal)
+    assert c == tuple(c) and tuple(c) == c and c == Contact(*c) and c != c._replace(initial=True)
+    assert Contact._fields == ("t", "point", "normal", "feature", "initial", "outcome")
+    assert Contact._make(tuple(c)) == c and copy.deepcopy(c).t == c.t
+    with pytest.raises(ValueError):
+        c._replace(time=0.0)
+    with pytest.raises(TypeError):
+        hash(c)  # like the NamedTuple: its arrays are not hashable
+    for name in Contact._fields + ("other",):
+        with pytest.raises(AttributeError):
+            setattr(c, name, 0.0)
 
 
-def test_recycled_contacts_never_change_what_a_caller_holds():
-    """Contacts come from a free list: one that nobody holds any more is refilled in place,
-    with its arrays. Whatever a caller still holds (a contact, one of its arrays, a weak
-    reference) keeps its values, and an array changed in place is replaced, not refilled."""
+def test_contacts_never_change_what_a_caller_holds():
+    """Every call makes its own contact (the core keeps none to refill): whatever a caller
+    still holds (a contact, one of its arrays, a weak reference) keeps its values, and an
+    array changed in place changes no later contact."""
 
     def solve(x):  # faces meet at x - 10 t = 1; x < 1 overlaps at t = 0 (least along y)
         start = (x, 0.3, 0.2) if x > 1.0 else (x, 0.95, 0.2)
@@ -440,14 +454,14 @@ def test_recycled_contacts_never_change_what_a_caller_holds():
     def frozen(c):
         return c.t, tuple(c.point), tuple(c.normal), c.feature, c.initial, c.outcome
 
-    xs = [5.0, 0.5, 3.0, 0.8, 2.0] * 4  # more contacts than the free list keeps, hits and overlaps
+    xs = [5.0, 0.5, 3.0, 0.8, 2.0] * 4  # hits and overlaps, each several times
     held = [solve(x) for x in xs]
     want = {x: frozen(c) for x, c in zip(xs, held)}
     assert want[3.0][0] == pytest.approx(0.2, abs=1e-11) and want[3.0][5] is Outcome.HIT
     assert want[0.5][:1] + want[0.5][4:] == (0.0, True, Outcome.INITIAL) and want[0.5][3] != want[3.0][3]
     for _ in range(3):
         for x in xs:
-            assert frozen(solve(x)) == want[x]  # refilled contacts carry the new answer, all of it
+            assert frozen(solve(x)) == want[x]  # later contacts carry their own answer, all of it
     assert [frozen(c) for c in held] == [want[x] for x in xs]  # held contacts did not change
 
     c = solve(5.0)

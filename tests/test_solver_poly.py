@@ -1,4 +1,4 @@
-"""The root queries of the core's polynomials (_core/poly.hpp), directly: simple
+"""The root queries of the core's polynomials (_core/solver/poly.hpp), directly: simple
 crossings, double roots (grazing), clustered roots, roots exactly at a split
 point of the subdivision, and the caps. Polynomials are given by coefficients,
 constant first, on s in [0, 1]."""

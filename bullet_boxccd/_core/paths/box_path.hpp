@@ -12,8 +12,8 @@
 
 #include <limits>
 
-#include "box_ccd.hpp"
-#include "step_path.hpp"
+#include "solver/box_ccd.hpp"
+#include "paths/step_path.hpp"
 
 namespace boxccd {
 
@@ -59,16 +59,11 @@ class RowBoxPath : public BoxPath {
     bool finite_;
 };
 
-// Separating-axis overlap depth of two boxes at poses X_WA, X_WB (4x4) with
-// half extents ha, hb: > 0 overlapping by that much, <= 0 apart (the gap,
-// negated, along the best of the 15 axes). The same test as path_depth.
-double pose_depth(const double *X_WA, const double *ha, const double *X_WB, const double *hb);
-
 // pose_depth of two paths' boxes at tau.
 double path_depth(const BoxPath &a, const BoxPath &b, double tau);
 
-// pose_depth, and the axis that gives it (unit, oriented from A towards B).
-double pose_separation(const double *X_WA, const double *ha, const double *X_WB, const double *hb, double *axis);
+// pose_separation of two paths' boxes at tau (axis: (3,)).
+double path_separation(const BoxPath &a, const BoxPath &b, double tau, double *axis);
 
 // The first tau in [from, 1] at which the boxes overlap by at least target
 // (path_depth >= target), to about 1e-13 of the step; NaN if they never do. The

@@ -1,5 +1,5 @@
 // Section topology and facet polynomials. See topology.hpp.
-#include "topology.hpp"
+#include "solver/topology.hpp"
 
 #include <algorithm>
 

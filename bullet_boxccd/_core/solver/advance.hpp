@@ -9,7 +9,7 @@
 // positive to the window's end ends the search (apart on the window).
 #pragma once
 
-#include "topology.hpp"
+#include "solver/topology.hpp"
 
 namespace boxccd {
 

@@ -14,7 +14,7 @@
 #include <array>
 #include <cstdint>
 
-#include "bms.hpp"
+#include "solver/bms.hpp"
 
 namespace boxccd {
 

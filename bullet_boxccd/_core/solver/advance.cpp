@@ -1,10 +1,10 @@
 // Advancement to the first contact. See advance.hpp.
-#include "advance.hpp"
+#include "solver/advance.hpp"
 
 #include <algorithm>
 #include <cmath>
 
-#include "route.hpp"
+#include "solver/route.hpp"
 
 namespace boxccd {
 

@@ -1,4 +1,4 @@
-// Every number the solver and the step path decide by: the caller's Tolerances
+// Every number the solver and the paths decide by: the caller's Tolerances
 // (validated here, defaults defined here once; the Python Tolerances reads them)
 // and one block of fixed constants, each with its reason. Lengths are relative:
 // a constant that compares lengths multiplies a size or a magnitude of the
@@ -59,6 +59,8 @@ constexpr double kSwitchRepeat = 4.0;
 // are slivers whose normal rounding cannot fix, and skipping an axis only
 // weakens the separation tests (the other 14 still decide contact).
 constexpr double kParallel = 1e-9;
+// The same test on squares, |a x b|^2 <= kParallel2 |a|^2 |b|^2 (no square root).
+constexpr double kParallel2 = kParallel * kParallel;
 // Edge-edge contact point: edges closer to parallel than this (relative
 // |u x v|^2 / (|u|^2 |v|^2), i.e. 1e-9 rad) have no unique closest points; the
 // midpoint of the overlap is taken instead.
@@ -93,6 +95,20 @@ constexpr int kMaxCullSteps = 12;
 constexpr int kMaxWindows = 64;
 
 // Step path (step_path.cpp).
+// Bullet clamps a body's turn per step at pi/4 (btMultiBody's and
+// btTransformUtil's ANGULAR_MOTION_THRESHOLD), and scales the quaternion so that
+// the realised angle is 2 atan(|w| dt / (pi/4) tan(pi/8)): bullet_step_angle.
+constexpr double kAngularMotionThreshold = 0.25 * 3.14159265358979323846;
+// Quadratic interpolation of f through s = 0, 1/2, 1 errs by at most
+// max|f'''| / 3! * max_[0,1] |s (s - 1/2)(s - 1)| = max|f'''| sqrt(3) / 216
+// (for a vector f too: the error is w(s) f[0, 1/2, 1, s], and the divided
+// difference is an average of f''' / 3! with a non-negative weight, the
+// Hermite-Genocchi formula, so its norm is at most max|f'''| / 3!).
+constexpr double kInterpolationError = 1.7320508075688772 / 216.0;
+// A turn by phi about a fixed axis is I + sin(phi s) K + (1 - cos(phi s)) K^2
+// with |K| = |K^2| = 1; the interpolation of sin and of 1 - cos errs by at most
+// kInterpolationError phi^3 each, so the fitted 3x3 part by at most twice that.
+constexpr double kFitErrorPerCubedAngle = 2.0 * kInterpolationError;
 // Swept bounds: the pose at five step fractions is evaluated in double
 // precision, each coordinate within a few eps of |centre| + reach radius; the
 // bounds are widened by this many eps of that magnitude.
@@ -113,5 +129,16 @@ constexpr double kMinWindow = 1e-12;
 // motion is too fast for quadratic pieces to pay, and each piece's box grows by
 // its own proven error instead (fit_path's bound, never late).
 constexpr int kMaxFitPieces = 64;
+
+// Boxes on any path (box_path.cpp, chain.cpp).
+// first_depth (BoxPath) halves pieces pruned by the boxes' travel; once a piece no
+// wider than kDepthNarrow reaches the target at its middle, the crossing between
+// its start and middle is bisected (a dip and rise inside so narrow a piece is not
+// looked for) down to kDepthPieceWidth of the step; narrower pieces are not split.
+constexpr double kDepthNarrow = 1.0 / 256.0;
+constexpr double kDepthPieceWidth = 1e-13;
+// Rounding of the link poses a fit interpolates, per level of the chain, relative
+// to the lengths involved: a few products and sums of eps each; taken generously.
+constexpr double kFitRounding = 32.0 * kEps;
 
 }  // namespace boxccd

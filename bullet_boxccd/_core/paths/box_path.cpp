@@ -1,4 +1,4 @@
-#include "box_path.hpp"
+#include "paths/box_path.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -10,19 +10,6 @@ namespace {
 
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 constexpr double kInf = std::numeric_limits<double>::infinity();
-
-double norm3(const double *v) { return std::sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]); }
-
-// Overlap of the two boxes' projections on unit axis u (negative: a gap).
-double overlap_on(const double *u, const double *X_WA, const double *ha, const double *X_WB, const double *hb,
-                  const double *d) {
-    double r = 0.0;
-    for (int i = 0; i < 3; ++i) {
-        r += ha[i] * std::fabs(u[0] * X_WA[i] + u[1] * X_WA[4 + i] + u[2] * X_WA[8 + i]);
-        r += hb[i] * std::fabs(u[0] * X_WB[i] + u[1] * X_WB[4 + i] + u[2] * X_WB[8 + i]);
-    }
-    return r - std::fabs(u[0] * d[0] + u[1] * d[1] + u[2] * d[2]);
-}
 
 }  // namespace
 
@@ -52,39 +39,6 @@ double RowBoxPath::travel(double lo, double hi) const {
     return 0.5 * (hi - lo) * (norm3(row_ + PathRow::kDisplacement) + std::fabs(row_[PathRow::kAngle]) * reach_);
 }
 
-double pose_depth(const double *X_WA, const double *ha, const double *X_WB, const double *hb) {
-    return pose_separation(X_WA, ha, X_WB, hb, nullptr);
-}
-
-double pose_separation(const double *X_WA, const double *ha, const double *X_WB, const double *hb, double *axis) {
-    const double d[3] = {X_WB[3] - X_WA[3], X_WB[7] - X_WA[7], X_WB[11] - X_WA[11]};
-    double depth = std::numeric_limits<double>::infinity();
-    const auto consider = [&](const double *u) {
-        const double o = overlap_on(u, X_WA, ha, X_WB, hb, d);
-        if (!(o < depth)) return;
-        depth = o;
-        if (axis) {
-            const double sgn = u[0] * d[0] + u[1] * d[1] + u[2] * d[2] < 0.0 ? -1.0 : 1.0;
-            for (int k = 0; k < 3; ++k) axis[k] = sgn * u[k];
-        }
-    };
-    for (int i = 0; i < 3; ++i) {  // face normals (rigid boxes: the axes are orthonormal)
-        const double ua[3] = {X_WA[i], X_WA[4 + i], X_WA[8 + i]}, ub[3] = {X_WB[i], X_WB[4 + i], X_WB[8 + i]};
-        consider(ua);
-        consider(ub);
-    }
-    for (int i = 0; i < 3; ++i)
-        for (int j = 0; j < 3; ++j) {
-            const double a[3] = {X_WA[i], X_WA[4 + i], X_WA[8 + i]}, b[3] = {X_WB[j], X_WB[4 + j], X_WB[8 + j]};
-            double u[3] = {a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]};
-            const double n = norm3(u);
-            if (!(n > kParallel)) continue;  // parallel edges give no axis (unit a, b: |a x b| is the sine)
-            for (double &x : u) x /= n;
-            consider(u);
-        }
-    return depth;
-}
-
 double path_depth(const BoxPath &a, const BoxPath &b, double tau) {
     double X_WA[16], X_WB[16];
     a.pose(tau, X_WA);
@@ -92,15 +46,20 @@ double path_depth(const BoxPath &a, const BoxPath &b, double tau) {
     return pose_depth(X_WA, a.half_extents(), X_WB, b.half_extents());
 }
 
+double path_separation(const BoxPath &a, const BoxPath &b, double tau, double *axis) {
+    double X_WA[16], X_WB[16];
+    a.pose(tau, X_WA);
+    b.pose(tau, X_WB);
+    return pose_separation(X_WA, a.half_extents(), X_WB, b.half_extents(), axis);
+}
+
 double first_depth(const BoxPath &a, const BoxPath &b, double from, double target, int budget) {
     if (!a.finite() || !b.finite() || !(from >= 0.0 && from <= 1.0) || std::isnan(target)) return kNaN;
     if (path_depth(a, b, from) >= target) return from;
     // Depth-first over halved pieces, earliest first: a piece is ruled out when the
     // depth at its middle plus both boxes' travel over it stays below target. Once a
-    // piece no wider than kNarrow reaches the target at its middle, the crossing
-    // between its start and its middle is found by bisection (a dip and rise inside
-    // so narrow a piece is not looked for).
-    constexpr double kNarrow = 1.0 / 256.0, kWidth = 1e-13;
+    // piece no wider than kDepthNarrow reaches the target at its middle, the crossing
+    // between its start and its middle is found by bisection (constants.hpp).
     struct Piece {
         double lo, hi;
     };
@@ -111,16 +70,16 @@ double first_depth(const BoxPath &a, const BoxPath &b, double from, double targe
         if (--budget < 0) return p.lo;
         const double mid = 0.5 * (p.lo + p.hi);
         const double depth = path_depth(a, b, mid);
-        if (depth >= target && p.hi - p.lo <= kNarrow) {
+        if (depth >= target && p.hi - p.lo <= kDepthNarrow) {
             double lo = p.lo, hi = mid;
-            while (hi - lo > kWidth) {
+            while (hi - lo > kDepthPieceWidth) {
                 const double m = 0.5 * (lo + hi);
                 if (m <= lo || m >= hi) break;
                 (path_depth(a, b, m) >= target ? hi : lo) = m;
             }
             return hi;
         }
-        if (p.hi - p.lo <= kWidth) continue;
+        if (p.hi - p.lo <= kDepthPieceWidth) continue;
         if (depth + a.travel(p.lo, p.hi) + b.travel(p.lo, p.hi) < target) continue;
         stack.push_back({mid, p.hi});
         stack.push_back({p.lo, mid});

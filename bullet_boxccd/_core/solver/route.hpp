@@ -16,7 +16,7 @@
 #include <array>
 #include <vector>
 
-#include "bms.hpp"
+#include "solver/bms.hpp"
 
 namespace boxccd {
 

@@ -20,7 +20,7 @@
 #include <string>
 #include <vector>
 
-#include "bms.hpp"
+#include "solver/bms.hpp"
 
 namespace boxccd {
 

@@ -1,4 +1,4 @@
-#include "chain.hpp"
+#include "paths/chain.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -10,19 +10,7 @@ namespace boxccd {
 
 namespace {
 
-constexpr double kEps = std::numeric_limits<double>::epsilon();
 constexpr double kInf = std::numeric_limits<double>::infinity();
-// Quadratic interpolation of f through s = 0, 1/2, 1 errs by at most
-// max|f'''| / 3! * max_[0,1] |s (s - 1/2)(s - 1)| = max|f'''| sqrt(3) / 216
-// (for a vector f too: the error is w(s) f[0, 1/2, 1, s], and the divided
-// difference is an average of f''' / 3! with a non-negative weight, the
-// Hermite-Genocchi formula, so its norm is at most max|f'''| / 3!).
-constexpr double kInterpolation = 1.7320508075688772 / 216.0;
-// Rounding of the poses the fit interpolates, per level of the chain, relative to
-// the lengths involved: a few products and sums of eps each; taken generously.
-constexpr double kFitRounding = 32.0 * kEps;
-
-double norm3(const double *v) { return std::sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]); }
 
 // Quaternions are x y z w, as pybullet gives them.
 void qmul(const double *a, const double *b, double *out) {
@@ -93,15 +81,6 @@ void interpolate(const double *X0, const double *X1, const double *X2, double *c
     }
 }
 
-struct Vec {
-    double x[3] = {0.0, 0.0, 0.0};
-};
-Vec operator+(const Vec &a, const Vec &b) { return {{a.x[0] + b.x[0], a.x[1] + b.x[1], a.x[2] + b.x[2]}}; }
-Vec operator*(double k, const Vec &a) { return {{k * a.x[0], k * a.x[1], k * a.x[2]}}; }
-Vec cross(const Vec &a, const Vec &b) {
-    return {{a.x[1] * b.x[2] - a.x[2] * b.x[1], a.x[2] * b.x[0] - a.x[0] * b.x[2], a.x[0] * b.x[1] - a.x[1] * b.x[0]}};
-}
-
 struct Affine {  // a + b r
     double a = 0.0, b = 0.0;
 };
@@ -123,9 +102,9 @@ void turn_bounds(double w, const Affine &rho, Affine &v1, Affine &v2, Affine &v3
 // The exact derivatives y[1..3] at the piece's middle after a turn W (fit_bound):
 // y^(j) <- sum_i C(j, i) xi^i y^(j - i), where p1 = xi^ y[0] (on the point, or on a
 // vector) and xi^ is W x on vectors.
-void advance(const Vec &W, const Vec &p1, Vec *y) {
-    const Vec p2 = cross(W, p1), p3 = cross(W, p2);
-    const Vec y1 = cross(W, y[1]), y11 = cross(W, y1), y2 = cross(W, y[2]);
+void advance(const Vec3 &W, const Vec3 &p1, Vec3 *y) {
+    const Vec3 p2 = cross3(W, p1), p3 = cross3(W, p2);
+    const Vec3 y1 = cross3(W, y[1]), y11 = cross3(W, y1), y2 = cross3(W, y[2]);
     y[3] = p3 + 3.0 * y11 + 3.0 * y2 + y[3];
     y[2] = p2 + 2.0 * y1 + y[2];
     y[1] = p1 + y[1];
@@ -134,10 +113,10 @@ void advance(const Vec &W, const Vec &p1, Vec *y) {
 // Spectral norm of the 3x3 matrix whose columns are c[0..2]: the square root of the
 // largest eigenvalue of its Gram matrix (closed form for symmetric 3x3), widened by
 // 1e-12 of the trace for rounding and never above the Frobenius norm.
-double spectral_norm(const Vec *c) {
+double spectral_norm(const Vec3 *c) {
     double G[3][3];
     for (int i = 0; i < 3; ++i)
-        for (int j = 0; j < 3; ++j) G[i][j] = c[i].x[0] * c[j].x[0] + c[i].x[1] * c[j].x[1] + c[i].x[2] * c[j].x[2];
+        for (int j = 0; j < 3; ++j) G[i][j] = c[i][0] * c[j][0] + c[i][1] * c[j][1] + c[i][2] * c[j][2];
     const double trace = G[0][0] + G[1][1] + G[2][2];
     const double off = G[0][1] * G[0][1] + G[0][2] * G[0][2] + G[1][2] * G[1][2];
     double top;
@@ -356,6 +335,25 @@ void ChainMotion::link_poses(double tau, double *poses) const {
     }
 }
 
+void ChainMotion::chord_state(int link, double dt, double *row) const {
+    double p0[7], *p1 = row;
+    if (link == -1) {
+        base_pose(0.0, p0);
+        base_pose(1.0, p1);
+    } else {
+        link_pose(link, 0.0, p0);
+        link_pose(link, 1.0, p1);
+    }
+    // The chord as a move between two poses (step_path.hpp: the turn the short way round).
+    double path[kPathBoxSize];
+    const double identity[16] = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1}, unit[3] = {1, 1, 1};
+    path_row_between(p0, p1, identity, unit, path);
+    for (int i = 0; i < 3; ++i) {
+        p1[7 + i] = path[PathRow::kDisplacement + i] / dt;
+        p1[10 + i] = path[PathRow::kAxis + i] * path[PathRow::kAngle] / dt;
+    }
+}
+
 // The bound on [lo, hi], derived.
 //
 // Over the piece, with s = tau - tm about the middle tm, the link's frame is a
@@ -391,7 +389,7 @@ void ChainMotion::link_poses(double tau, double *poses) const {
 // and dist(y_{k+1}(tm), L) <= dist(link origin at tm, L) + r for a point within r
 // of the link's origin (y_{k+1}(tm) is the point's place at tm), every V is
 // affine in r. The fit's error is at most sup|x^(3)| (hi - lo)^3 sqrt(3) / 216
-// (kInterpolation; tau runs over hi - lo), so at most V3 times that. The exact
+// (kInterpolationError; tau runs over hi - lo), so at most V3 times that. The exact
 // case: one turn at radius rho gives V3 = w^3 rho, the |x^(3)| of a circle.
 //
 // Local bound. The triangle inequality above adds turns that partly cancel (two
@@ -422,21 +420,21 @@ FitBound ChainMotion::fit_bound(int link, double lo, double hi) const {
     for (int i = m - 1; i >= 0; --i) child_pose(path[i], &pose[7 * (i + 1)], tm, &pose[7 * i]);
     const double *c = &pose[0];  // the link's origin at tm
     Affine v1, v2, v3, v4;
-    Vec D[4] = {{{c[0], c[1], c[2]}}, {}, {}, {}};                           // of the origin: D[0] the point
-    Vec E[4][3] = {{{{1, 0, 0}}, {{0, 1, 0}}, {{0, 0, 1}}}, {}, {}, {}};  // of the world axes, as vectors
+    Vec3 D[4] = {Vec3{c[0], c[1], c[2]}, {}, {}, {}};                       // of the origin: D[0] the point
+    Vec3 E[4][3] = {{Vec3{1, 0, 0}, Vec3{0, 1, 0}, Vec3{0, 0, 1}}, {}, {}, {}};  // of the world axes, as vectors
     double spin = 0.0, lengths = norm3(c);
     const auto turn = [&](double w, const double *o, const double *u) {  // rate w about the line (o, u)
         const double aw = std::fabs(w);
         if (!(aw > 0.0)) return;
-        const Vec co{{c[0] - o[0], c[1] - o[1], c[2] - o[2]}}, W{{w * u[0], w * u[1], w * u[2]}};
-        const double along = co.x[0] * u[0] + co.x[1] * u[1] + co.x[2] * u[2];
-        const double off[3] = {co.x[0] - along * u[0], co.x[1] - along * u[1], co.x[2] - along * u[2]};
+        const Vec3 co{c[0] - o[0], c[1] - o[1], c[2] - o[2]}, W{w * u[0], w * u[1], w * u[2]};
+        const double along = co[0] * u[0] + co[1] * u[1] + co[2] * u[2];
+        const double off[3] = {co[0] - along * u[0], co[1] - along * u[1], co[2] - along * u[2]};
         const Affine rho{norm3(off) + h * v1.a, 1.0 + h * v1.b};
         turn_bounds(aw, rho, v1, v2, v3, v4);
-        advance(W, cross(W, co), D);
+        advance(W, cross3(W, co), D);
         for (int k = 0; k < 3; ++k) {
-            Vec y[4] = {E[0][k], E[1][k], E[2][k], E[3][k]};
-            advance(W, cross(W, y[0]), y);
+            Vec3 y[4] = {E[0][k], E[1][k], E[2][k], E[3][k]};
+            advance(W, cross3(W, y[0]), y);
             for (int j = 1; j < 4; ++j) E[j][k] = y[j];
         }
         spin += aw;
@@ -455,20 +453,20 @@ FitBound ChainMotion::fit_bound(int link, double lo, double hi) const {
         } else if (l.type == JointType::Prismatic) {
             double S[3];
             qrot(child + 3, l.axis, S);  // the child's axis (a slide does not turn the child)
-            for (int k = 0; k < 3; ++k) D[1].x[k] += j.shift * S[k];
+            for (int k = 0; k < 3; ++k) D[1][k] += j.shift * S[k];
             v1.a += std::fabs(j.shift) * norm3(l.axis);
         }
     }
     turn(base_angle_, &pose[7 * m], base_axis_);
-    for (int k = 0; k < 3; ++k) D[1].x[k] += state_[FrameState::kVelocity + k] * dt_;
+    for (int k = 0; k < 3; ++k) D[1][k] += state_[FrameState::kVelocity + k] * dt_;
     v1.a += base_shift_;
-    const double scale = kInterpolation * len * len * len, slack = kFitRounding * (m + 2);
+    const double scale = kInterpolationError * len * len * len, slack = kFitRounding * (m + 2);
     const double a_norm = spectral_norm(E[3]) * (1.0 + slack);
     const double spin3 = spin * spin * spin, spin4 = spin3 * spin;
     FitBound b;
     b.factor0 = scale * v3.a + slack * lengths;
     b.factor1 = scale * v3.b + slack;
-    b.local0 = scale * (norm3(D[3].x) + h * v4.a + slack * v3.a) + slack * lengths;
+    b.local0 = scale * (norm3(D[3]) + h * v4.a + slack * v3.a) + slack * lengths;
     b.local1 = scale * (a_norm + h * v4.b + slack * v3.b) + slack;
     b.rotation = scale * std::min(spin3, a_norm + h * spin4) + slack;
     b.sweep0 = h * v1.a + slack * lengths;

@@ -28,7 +28,7 @@
 #include <cmath>
 #include <limits>
 
-#include "constants.hpp"
+#include "solver/constants.hpp"
 
 namespace boxccd {
 

@@ -11,7 +11,7 @@
 // where most octant switches are proven absent without root isolation.
 #pragma once
 
-#include "bms.hpp"
+#include "solver/bms.hpp"
 
 namespace boxccd {
 

@@ -31,9 +31,9 @@
 #include <stdexcept>
 #include <string>
 
-#include "constants.hpp"
-#include "poly.hpp"
-#include "vec.hpp"
+#include "solver/constants.hpp"
+#include "solver/poly.hpp"
+#include "solver/vec.hpp"
 
 namespace boxccd {
 

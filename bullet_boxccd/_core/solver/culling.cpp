@@ -1,5 +1,5 @@
 // Conservative advancement on fixed separating axes. See culling.hpp.
-#include "culling.hpp"
+#include "solver/culling.hpp"
 
 #include <algorithm>
 #include <limits>
@@ -54,7 +54,6 @@ SeparatingAxis axis_at(const Pair &pair, const Sample &at, int ax) {
     const int g1 = axis_generator(ax, 0), g2 = axis_generator(ax, 1);
     const Vec3 n = cross3(at.g[g1], at.g[g2]);
     const double nn2 = dot3(n, n), nd = dot3(n, at.d);
-    constexpr double kParallel2 = kParallel * kParallel;
     if (!(nn2 > kParallel2 * dot3(at.g[g1], at.g[g1]) * dot3(at.g[g2], at.g[g2]))) return out;
     // The axis' own generators add only their rounding (n.g is zero for them):
     // summed without a branch, that makes the gap a few eps smaller, never larger.

@@ -1,6 +1,6 @@
 // The pair's Minkowski difference: setup in the pair's frame, the 15 axes at a
 // time, the cofactor polynomials, the regularity check. See bms.hpp.
-#include "bms.hpp"
+#include "solver/bms.hpp"
 
 #include <algorithm>
 #include <cstdio>
@@ -198,7 +198,6 @@ Pair::Pair(const BoxInput &a, const BoxInput &b, double t0_, double t1_, const T
 // modulo), the normals stay in registers, nothing is stored but the results.
 void axes_at(const Pair &pair, const Vec3 *gs, const Vec3 &d, AxesAt &v) {
     const double *h = pair.h;
-    constexpr double kParallel2 = kParallel * kParallel;
     const double len2[6] = {dot3(gs[0], gs[0]), dot3(gs[1], gs[1]), dot3(gs[2], gs[2]),
                             dot3(gs[3], gs[3]), dot3(gs[4], gs[4]), dot3(gs[5], gs[5])};
     double S[2][3][3], det[2];  // |S[q][i][l]| and |det|

@@ -1,12 +1,14 @@
-// Small fixed-size vectors and the quadratic vector curves of the solver (a
-// box's edge direction or centre as a function of s: c0 + c1 s + c2 s^2), and
-// the cofactor products of such curves as polynomial vectors (poly.hpp).
+// Small fixed-size vectors (Vec3: the core's one vector type; norm3 also takes
+// three doubles in place, as the paths store them in rows and matrices), the
+// quadratic vector curves of the solver (a box's edge direction or centre as a
+// function of s: c0 + c1 s + c2 s^2), and the cofactor products of such curves
+// as polynomial vectors (poly.hpp).
 #pragma once
 
 #include <array>
 #include <cmath>
 
-#include "poly.hpp"
+#include "solver/poly.hpp"
 
 namespace boxccd {
 
@@ -18,6 +20,10 @@ inline Vec3 cross3(const Vec3 &a, const Vec3 &b) {
     return {a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]};
 }
 inline double sum_abs3(const Vec3 &v) { return std::fabs(v[0]) + std::fabs(v[1]) + std::fabs(v[2]); }
+inline Vec3 operator+(const Vec3 &a, const Vec3 &b) { return {a[0] + b[0], a[1] + b[1], a[2] + b[2]}; }
+inline Vec3 operator*(double k, const Vec3 &a) { return {k * a[0], k * a[1], k * a[2]}; }
+// The same on three doubles in place (a column of a row-major matrix, a part of a row).
+inline double norm3(const double *v) { return std::sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]); }
 
 // A quadratic vector curve c[0] + c[1] s + c[2] s^2.
 struct Curve {

@@ -16,7 +16,7 @@
 #include <utility>
 #include <vector>
 
-#include "box_ccd.hpp"
+#include "solver/box_ccd.hpp"
 
 namespace boxccd {
 
@@ -67,14 +67,22 @@ void window_row(const double *row, double lo, double hi, double *out);
 // The frame's pose at tau: position (3) and unit quaternion x y z w (4).
 void frame_pose(const double *state, double dt, double tau, double *pose);
 
-// Separating-axis overlap depth at step fraction tau: > 0 overlapping by that
-// much, <= 0 apart (the gap, negated, along the best of the 15 axes).
+// Separating-axis overlap depth of two boxes at poses X_WA, X_WB (4x4 row-major)
+// with half extents ha, hb: > 0 overlapping by that much, <= 0 apart (the gap,
+// negated, along the best of the 15 axes). The one overlap test of every path kind.
+double pose_depth(const double *X_WA, const double *ha, const double *X_WB, const double *hb);
+
+// pose_depth, with the axis that gives it (unit, from A towards B; if not null): for
+// an overlap, the direction in which B is pushed out along the least overlap. With a
+// floor: stops at the first axis whose overlap is below it (the depth is then below
+// the floor, and the axis is that one).
+double pose_separation(const double *X_WA, const double *ha, const double *X_WB, const double *hb, double *axis,
+                       double floor = -std::numeric_limits<double>::infinity());
+
+// pose_depth of two path rows' boxes at step fraction tau.
 double path_depth(const double *box_a, const double *box_b, double tau);
 
-// path_depth, with the axis that gives it (unit, from A towards B): for an overlap,
-// the direction in which B is pushed out along the least overlap.
-// With a floor: stops at the first axis whose overlap is below it (the depth is then
-// below the floor, and the axis is that one).
+// pose_separation of two path rows' boxes at step fraction tau.
 double path_separation(const double *box_a, const double *box_b, double tau, double *axis,
                        double floor = -std::numeric_limits<double>::infinity());
 
@@ -106,15 +114,8 @@ double fit_path(const double *box, double lo, double hi, double *coeffs);
 // most fit_tolerance times its smallest half extent.
 int fit_pieces(const double *box, double fit_tolerance);
 
-// The first touch of two boxes on their fitted motions, each piece's box
-// inflated by the fit's error bound so that the answer is never late: the step
-// fraction, NaN if they stay apart or a row is not finite; `outcome` says which
-// (Separated, NonFinite, Initial for a pair touching at the start, or the solver's
-// outcome on the touching piece: a degraded one is early and not proven). `solves`
-// counts the solver calls (one per piece tried).
-// depth0: path_depth at 0, if known (NaN: computed); a pair touching then touches at 0.
-double first_touch(const double *box_a, const double *box_b, double fit_tolerance, const Tolerances &tol,
-                   long &solves, Outcome &outcome, double depth0 = std::numeric_limits<double>::quiet_NaN());
+// The first touch of two path rows' boxes on their fitted motions is box_path.hpp's
+// first_touch on RowBoxPaths (one piecewise search for every path kind).
 
 // Whether two boxes that touch at the start of the step (path rows) press in during
 // it: their overlap grows past what it was at the start by penetration, and by
@@ -127,45 +128,5 @@ bool presses_in(const double *box_a, const double *box_b, double penetration, do
 // geometry (one fit over the window, inflated likewise); t is a step fraction.
 // Its outcome says what happened (NonFinite for a row that is not finite).
 Hit path_contact(const double *box_a, const double *box_b, double lo, double hi, const Tolerances &tol);
-
-// A rigid body at a collision: centre of mass (world), inverse mass, inverse and
-// direct inertia (world, 3x3 row-major; 0 for an immovable body), velocities.
-struct CollisionBody {
-    double com[3], inv_m, inv_I[9], I[9], v[3], w[3];
-};
-
-// The collision of bodies a and b touching at n_points points (3 each) with unit
-// normal n (from a towards b); velocities are updated in place. First perfectly
-// inelastic, as a contact solver makes it: sweeps of sequential impulses at the
-// points, a normal one that never pulls (the sum at a point stays >= 0) and stops the
-// point's approach, and a friction one along the sliding direction bounded by mu
-// times the point's normal impulse (Coulomb). Then restitution as Newton's law on the
-// centres of mass: the pair parts along n at e times the speed it approached. Last,
-// the change is scaled down if it would raise the kinetic energy. Returns whether any
-// point approached.
-bool resolve_collision(CollisionBody &a, CollisionBody &b, const double *points, int n_points, const double *n,
-                       double e, double mu, int sweeps);
-
-// pybullet's collision filter test of two frames' groups and masks (pair rules
-// are applied by the caller): mode 0 "A's group & B's mask, and B's group & A's
-// mask", mode 1 (pybullet's default) "... or ...".
-struct FrameFilter {
-    const int64_t *group, *mask;
-    int mode;
-    bool allowed(int64_t a, int64_t b) const {
-        const bool ab = (group[a] & mask[b]) != 0, ba = (group[b] & mask[a]) != 0;
-        return mode == 1 ? (ab || ba) : (ab && ba);
-    }
-};
-
-// Pairs of the n boxes whose swept bounds meet, for the broad phase: bounds is
-// (n, 6), lo then hi of each box (swept_bounds). Boxes 0 .. n_fast - 1 are the
-// fast ones: every pair has a fast first member, and a pair of fast boxes
-// appears once. frame[i] is box i's frame; boxes of one frame never pair, nor
-// boxes of one body unless it self-collides (self_collides[frame]), nor frames
-// the filter keeps apart.
-std::vector<std::pair<int64_t, int64_t>> candidate_pairs(const double *bounds, int64_t n, int64_t n_fast,
-                                                         const int64_t *frame, const int64_t *frame_body,
-                                                         const uint8_t *self_collides, const FrameFilter &filter);
 
 }  // namespace boxccd

@@ -1,13 +1,13 @@
 // The solver's entry points: input checks, the first-contact driver (culling,
 // then the BMS search window by window), contact geometry, the BMS planes.
-#include "box_ccd.hpp"
+#include "solver/box_ccd.hpp"
 
 #include <algorithm>
 #include <cstdio>
 
-#include "advance.hpp"
-#include "culling.hpp"
-#include "route.hpp"
+#include "solver/advance.hpp"
+#include "solver/culling.hpp"
+#include "solver/route.hpp"
 
 namespace boxccd {
 

@@ -1,5 +1,5 @@
 // Octant switches (route division). See route.hpp.
-#include "route.hpp"
+#include "solver/route.hpp"
 
 #include <algorithm>
 

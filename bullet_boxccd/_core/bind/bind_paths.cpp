@@ -1,0 +1,243 @@
+// The step paths' bindings: boxes on Bullet's within-step paths as path rows
+// (paths/step_path.hpp), and as BoxPath objects of either kind with the first
+// touch, depth and separation of two of them (paths/box_path.hpp). Arrays come as
+// float64 C-contiguous; shapes are checked by nanobind (rows) or `expect`.
+#include <nanobind/stl/tuple.h>
+
+#include <cmath>
+#include <limits>
+#include <string>
+
+#include "bind/common.hpp"
+#include "paths/box_path.hpp"
+#include "paths/step_path.hpp"
+
+namespace boxccd::bind {
+
+namespace {
+
+using PathBoxes = In<2, kPathBoxSize>;
+using PathRows = In<-1, kPathBoxSize>;
+
+// ------------------------------------------------------------------ path rows
+Out<double, -1> py_path_depth(const PathBoxes &boxes, const In<-1> &taus) {
+    const size_t n = taus.shape(0);
+    auto [out, owner] = new_buffer<double>(n);
+    for (size_t i = 0; i < n; ++i) out[i] = path_depth(boxes.data(), boxes.data() + kPathBoxSize, taus.data()[i]);
+    return Out<double, -1>(out, {n}, owner);
+}
+
+Out<double, -1, 6> py_swept_bounds(const PathRows &boxes) {
+    const size_t n = boxes.shape(0);
+    auto [out, owner] = new_buffer<double>(6 * n);
+    for (size_t i = 0; i < n; ++i) swept_bounds(boxes.data() + kPathBoxSize * i, out + 6 * i, out + 6 * i + 3);
+    return Out<double, -1, 6>(out, {n, 6}, owner);
+}
+
+// (depth, axis (3,)) of path_separation at tau.
+nb::tuple py_path_separation(const PathBoxes &boxes, double tau) {
+    auto [out, owner] = new_buffer<double>(3);
+    const double depth = path_separation(boxes.data(), boxes.data() + kPathBoxSize, tau, out);
+    return nb::make_tuple(depth, Out<double, 3>(out, {3}, owner));
+}
+
+double py_first_depth(const PathBoxes &boxes, double tau_from, double target) {
+    return first_depth(boxes.data(), boxes.data() + kPathBoxSize, tau_from, target);
+}
+
+// (n, 4, 4) poses of path rows' boxes at taus (one each).
+Out<double, -1, 4, 4> py_row_poses(const PathRows &rows, const In<-1> &taus) {
+    const size_t n = rows.shape(0);
+    if (taus.shape(0) != n) throw nb::value_error("rows and taus differ in length");
+    auto [out, owner] = new_buffer<double>(16 * n);
+    for (size_t i = 0; i < n; ++i) row_pose(rows.data() + kPathBoxSize * i, taus.data()[i], out + 16 * i);
+    return Out<double, -1, 4, 4>(out, {n, 4, 4}, owner);
+}
+
+// Path rows restricted to the window [lo, hi] of the step.
+Out<double, -1, kPathBoxSize> py_window_rows(const PathRows &rows, double lo, double hi) {
+    const size_t n = rows.shape(0);
+    auto [out, owner] = new_buffer<double>(kPathBoxSize * n);
+    for (size_t i = 0; i < n; ++i) window_row(rows.data() + kPathBoxSize * i, lo, hi, out + kPathBoxSize * i);
+    return Out<double, -1, kPathBoxSize>(out, {n, size_t(kPathBoxSize)}, owner);
+}
+
+// (coeffs (3, 4, 4), error bound) of one box's path over [lo, hi].
+nb::tuple py_fit_path(const In<kPathBoxSize> &box, double lo, double hi) {
+    auto [out, owner] = new_buffer<double>(48);
+    const double err = fit_path(box.data(), lo, hi, out);
+    return nb::make_tuple(Out<double, 3, 4, 4>(out, {3, 4, 4}, owner), err);
+}
+
+// Like solve: a Contact (whose outcome says what happened, NON_FINITE for a row
+// that is not finite) or None.
+nb::object py_path_contact(const PathBoxes &boxes, double lo, double hi, const Tolerances &tol) {
+    validate(tol);
+    return hit_result(path_contact(boxes.data(), boxes.data() + kPathBoxSize, lo, hi, tol));
+}
+
+// Column layouts (name -> (start, stop)) of the frame state and the path row.
+nb::dict layouts() {
+    using fs = FrameState;
+    using pr = PathRow;
+    nb::dict state, row, out;
+    state["position"] = nb::make_tuple(fs::kPosition, fs::kOrientation);
+    state["orientation"] = nb::make_tuple(fs::kOrientation, fs::kVelocity);
+    state["velocity"] = nb::make_tuple(fs::kVelocity, fs::kAngularVelocity);
+    state["angular_velocity"] = nb::make_tuple(fs::kAngularVelocity, fs::kSize);
+    row["pose_after"] = nb::make_tuple(pr::kPoseAfter, pr::kDisplacement);
+    row["displacement"] = nb::make_tuple(pr::kDisplacement, pr::kAxis);
+    row["axis"] = nb::make_tuple(pr::kAxis, pr::kAngle);
+    row["angle"] = nb::make_tuple(pr::kAngle, pr::kBoxInFrame);
+    row["box_in_frame"] = nb::make_tuple(pr::kBoxInFrame, pr::kHalfExtents);
+    row["half_extents"] = nb::make_tuple(pr::kHalfExtents, pr::kSize);
+    out["frame_state"] = state;
+    out["path_row"] = row;
+    return out;
+}
+
+// ------------------------------------------------------------------ BoxPaths
+RowBoxPath make_row_box(const Doubles &row) {
+    expect(row, "row", {kPathBoxSize});
+    for (size_t i = 0; i < size_t(kPathBoxSize); ++i)
+        if (!std::isfinite(row.data()[i]))
+            throw nb::value_error(("row: column " + std::to_string(i) + " is not finite").c_str());
+    return RowBoxPath(row.data());
+}
+
+Out<double, 4, 4> path_pose(const BoxPath &path, double tau) {
+    check_tau(tau);
+    double *out;
+    auto a = new_array<4, 4>({4, 4}, out);
+    path.pose(tau, out);
+    return a;
+}
+
+Out<double, -1, 4, 4> path_poses(const BoxPath &path, const Doubles &taus) {
+    expect(taus, "taus", {-1});
+    const size_t n = taus.shape(0);
+    for (size_t k = 0; k < n; ++k) check_tau(taus.data()[k]);
+    double *out;
+    auto a = new_array<-1, 4, 4>({n, 4, 4}, out);
+    for (size_t k = 0; k < n; ++k) path.pose(taus.data()[k], out + 16 * k);
+    return a;
+}
+
+nb::tuple path_fit(const BoxPath &path, double lo, double hi) {
+    check_piece(lo, hi);
+    double *out;
+    auto coeffs = new_array<3, 4, 4>({3, 4, 4}, out);
+    const double grow = path.fit(lo, hi, out);
+    return nb::make_tuple(coeffs, grow);
+}
+
+int path_pieces(const BoxPath &path, double fit_tolerance) {
+    check_fit_tolerance(fit_tolerance);
+    return path.pieces(fit_tolerance);
+}
+
+Out<double, 3> path_half_extents(const BoxPath &path) {
+    double *out;
+    auto a = new_array<3>({3}, out);
+    std::copy(path.half_extents(), path.half_extents() + 3, out);
+    return a;
+}
+
+Out<double, 6> bounds_of(const BoxPath &path, int pieces) {
+    if (pieces < 1 || pieces > 4096)
+        throw nb::value_error(("pieces must be in [1, 4096], got " + std::to_string(pieces)).c_str());
+    double *out;
+    auto a = new_array<6>({6}, out);
+    path_bounds(path, pieces, out, out + 3);
+    return a;
+}
+
+// (first touch, solver calls), or with `state` (first touch, its Outcome as int, solver calls).
+nb::tuple paths_first_touch(const BoxPath &a, const BoxPath &b, double fit_tolerance, const Tolerances &tol,
+                            bool state) {
+    check_fit_tolerance(fit_tolerance);
+    long solves = 0;
+    double t;
+    Outcome outcome;
+    {
+        nb::gil_scoped_release release;
+        t = first_touch(a, b, fit_tolerance, tol, solves, outcome);
+    }
+    if (!state) return nb::make_tuple(t, solves);
+    return nb::make_tuple(t, static_cast<int>(outcome), solves);
+}
+
+// (t, solves, Contact or None) of paths_first_touch: the contact on the fitted
+// motions (None: apart). Its outcome says what happened (a degraded one is early
+// and not proven); a touch where no facet was found (at the start, or on a piece
+// too fast to fit) has feature None and a NaN point and normal.
+nb::tuple py_paths_contact(const BoxPath &a, const BoxPath &b, double fit_tolerance, const Tolerances &tol) {
+    check_fit_tolerance(fit_tolerance);
+    long solves = 0;
+    Hit h;
+    Outcome outcome;
+    double t;
+    {
+        nb::gil_scoped_release release;
+        t = first_touch(a, b, fit_tolerance, tol, solves, outcome, std::numeric_limits<double>::quiet_NaN(), &h);
+    }
+    return nb::make_tuple(t, solves, hit_result(h));
+}
+
+double paths_depth(const BoxPath &a, const BoxPath &b, double tau) {
+    check_tau(tau);
+    return path_depth(a, b, tau);
+}
+
+// (depth, axis (3,)): pose_separation of the two boxes at tau.
+nb::tuple paths_separation(const BoxPath &a, const BoxPath &b, double tau) {
+    check_tau(tau);
+    double *axis;
+    auto out = new_array<3>({3}, axis);
+    const double depth = path_separation(a, b, tau, axis);
+    return nb::make_tuple(depth, out);
+}
+
+double paths_first_depth(const BoxPath &a, const BoxPath &b, double from, double target) {
+    check_tau(from);
+    if (!std::isfinite(target)) throw nb::value_error("target must be finite");
+    nb::gil_scoped_release release;
+    return first_depth(a, b, from, target);
+}
+
+}  // namespace
+
+void bind_paths(nb::module_ &m) {
+    m.def("layouts", &layouts);
+    m.def("bullet_step_angle", &bullet_step_angle, nb::arg("speed"), nb::arg("dt"));
+    m.def("path_depth", &py_path_depth, nb::arg("boxes"), nb::arg("taus"));
+    m.def("path_separation", &py_path_separation, nb::arg("boxes"), nb::arg("tau"));
+    m.def("first_depth", &py_first_depth, nb::arg("boxes"), nb::arg("tau_from"), nb::arg("target"));
+    m.def("swept_bounds", &py_swept_bounds, nb::arg("boxes"));
+    m.def("row_poses", &py_row_poses, nb::arg("rows"), nb::arg("taus"));
+    m.def("window_rows", &py_window_rows, nb::arg("rows"), nb::arg("lo"), nb::arg("hi"));
+    m.def("fit_path", &py_fit_path, nb::arg("box"), nb::arg("lo"), nb::arg("hi"));
+    m.def("path_contact", &py_path_contact, nb::arg("boxes"), nb::arg("lo"), nb::arg("hi"), nb::arg("tolerances"));
+
+    nb::class_<BoxPath>(m, "BoxPath", "A box on a within-step path (box_path.hpp); see RowBoxPath, LinkBoxPath.")
+        .def("pose", &path_pose, nb::arg("tau"))
+        .def("poses", &path_poses, nb::arg("taus"))
+        .def("fit", &path_fit, nb::arg("lo"), nb::arg("hi"))
+        .def("pieces", &path_pieces, nb::arg("fit_tolerance"))
+        .def("travel", [](const BoxPath &p, double lo, double hi) { check_piece(lo, hi); return p.travel(lo, hi); },
+             nb::arg("lo"), nb::arg("hi"), "How far any point of the box can be, over [lo, hi], from its place at the middle.")
+        .def("bounds", &bounds_of, nb::arg("pieces") = 4, "(6,) world bounds (lo, hi) of the box over the step.")
+        .def_prop_ro("half_extents", &path_half_extents, nb::rv_policy::move);
+    nb::class_<RowBoxPath, BoxPath>(m, "RowBoxPath", "A box on a free frame's path row.")
+        .def("__init__", [](RowBoxPath *self, const Doubles &row) { new (self) RowBoxPath(make_row_box(row)); },
+             nb::arg("row"));
+    m.def("paths_first_touch", &paths_first_touch, nb::arg("a"), nb::arg("b"), nb::arg("fit_tolerance"),
+          nb::arg("tolerances"), nb::arg("state") = false);
+    m.def("paths_contact", &py_paths_contact, nb::arg("a"), nb::arg("b"), nb::arg("fit_tolerance"),
+          nb::arg("tolerances"));
+    m.def("paths_depth", &paths_depth, nb::arg("a"), nb::arg("b"), nb::arg("tau"));
+    m.def("paths_separation", &paths_separation, nb::arg("a"), nb::arg("b"), nb::arg("tau"));
+    m.def("paths_first_depth", &paths_first_depth, nb::arg("a"), nb::arg("b"), nb::arg("from_tau"), nb::arg("target"));
+}
+
+}  // namespace boxccd::bind

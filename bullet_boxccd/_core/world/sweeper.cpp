@@ -1,0 +1,168 @@
+#include "world/sweeper.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <stdexcept>
+#include <string>
+
+#include "paths/box_path.hpp"
+
+namespace boxccd {
+
+void check_index(int64_t i, size_t n, const char *what) {
+    if (i < 0 || size_t(i) >= n) throw std::out_of_range(std::string(what) + " index " + std::to_string(i) + " out of range");
+}
+
+std::vector<std::pair<int64_t, int64_t>> candidate_pairs(const double *bounds, int64_t n, int64_t n_fast,
+                                                         const int64_t *frame, const int64_t *frame_body,
+                                                         const uint8_t *self_collides, const FrameFilter &filter) {
+    std::vector<std::pair<int64_t, int64_t>> out;
+    for (int64_t i = 0; i < n_fast; ++i)
+        for (int64_t j = 0; j < n; ++j) {
+            if (j == i || (j < n_fast && j < i)) continue;
+            const double *bi = bounds + 6 * i, *bj = bounds + 6 * j;
+            if (!(bi[0] <= bj[3] && bj[0] <= bi[3] && bi[1] <= bj[4] && bj[1] <= bi[4] && bi[2] <= bj[5] &&
+                  bj[2] <= bi[5]))
+                continue;
+            const int64_t fi = frame[i], fj = frame[j];
+            if (fi == fj) continue;  // boxes of one link never collide with each other
+            if (frame_body[fi] == frame_body[fj] && !self_collides[fi]) continue;
+            if (!filter.allowed(fi, fj)) continue;
+            out.emplace_back(i, j);
+        }
+    return out;
+}
+
+void path_rows(const double *state, size_t n_frames, double dt, const int64_t *boxes, size_t n,
+               const BoxTable &table, double *out) {
+    for (size_t i = 0; i < n; ++i) {
+        const int64_t b = boxes[i];
+        check_index(b, table.n, "box");
+        const int64_t f = table.box_frame[b];
+        check_index(f, n_frames, "frame");
+        path_row(state + kFrameStateSize * f, dt, table.X_CS + 16 * b, table.half + 3 * b, out + kPathBoxSize * i);
+    }
+}
+
+void path_rows_between(const double *poses0, const double *poses1, size_t n_frames, const int64_t *boxes, size_t n,
+                       const BoxTable &table, double *out) {
+    for (size_t i = 0; i < n; ++i) {
+        const int64_t b = boxes[i];
+        check_index(b, table.n, "box");
+        const int64_t f = table.box_frame[b];
+        check_index(f, n_frames, "frame");
+        path_row_between(poses0 + 7 * f, poses1 + 7 * f, table.X_CS + 16 * b, table.half + 3 * b,
+                         out + kPathBoxSize * i);
+    }
+}
+
+void frame_poses(const double *state, size_t n_frames, double dt, const int64_t *frames, const double *taus,
+                 size_t n, double *out) {
+    for (size_t i = 0; i < n; ++i) {
+        check_index(frames[i], n_frames, "frame");
+        frame_pose(state + kFrameStateSize * frames[i], dt, taus[i], out + 7 * i);
+    }
+}
+
+long first_touches(const double *rows, const int64_t *pairs, size_t n, double fit_tolerance, const Tolerances &tol,
+                   double penetration, double creep, double *out, int8_t *state, int64_t *counts) {
+    long solves = 0;
+    for (size_t k = 0; k < n; ++k) {
+        const double *a = rows + kPathBoxSize * pairs[2 * k], *b = rows + kPathBoxSize * pairs[2 * k + 1];
+        const double depth0 = path_depth(a, b, 0.0);
+        Outcome o;
+        out[k] = first_touch(RowBoxPath(a), RowBoxPath(b), fit_tolerance, tol, solves, o, depth0);
+        if (out[k] == 0.0 && creep >= 0.0 && !presses_in(a, b, penetration, creep, depth0)) {
+            out[k] = std::numeric_limits<double>::quiet_NaN();
+            o = Outcome::Separated;
+        }
+        if (state) state[k] = static_cast<int8_t>(o);
+        if (counts) ++counts[static_cast<int>(o)];
+    }
+    return solves;
+}
+
+Sweeper::Sweeper(const Tables &t)
+    : n_(t.n_boxes), box_frame_(t.box_frame, t.box_frame + t.n_boxes), radius_(t.radius, t.radius + t.n_boxes),
+      X_CS_(t.X_CS, t.X_CS + 16 * t.n_boxes), half_(t.half, t.half + 3 * t.n_boxes),
+      sweep_reach_(t.sweep_reach, t.sweep_reach + t.n_boxes), frame_body_(t.frame_body, t.frame_body + t.n_frames),
+      self_collides_(t.self_collides, t.self_collides + t.n_frames), group_(t.group, t.group + t.n_frames),
+      mask_(t.mask, t.mask + t.n_frames), mode_(t.filter_mode), state_(kFrameStateSize * t.n_frames, 0.0) {
+    for (const int64_t f : box_frame_) check_index(f, t.n_frames, "frame");
+    for (size_t f = 0; f < t.n_frames; ++f) state_[kFrameStateSize * f + FrameState::kOrientation + 3] = 1.0;
+}
+
+Sweeper::Fast Sweeper::fast(double dt) const {
+    Fast out;
+    for (size_t i = 0; i < n_; ++i) {
+        const int64_t f = box_frame_[i];
+        const double r = step_reach(state_.data() + kFrameStateSize * f, dt, radius_[i]);
+        if (!std::isfinite(r)) continue;  // a broken body (pybullet's NaN) is left to pybullet
+        if (r > sweep_reach_[i]) {
+            out.boxes.push_back(int64_t(i));
+            out.frames.push_back(f);
+        } else {
+            out.slack = std::fmax(out.slack, r);
+        }
+    }
+    std::sort(out.frames.begin(), out.frames.end());
+    out.frames.erase(std::unique(out.frames.begin(), out.frames.end()), out.frames.end());
+    return out;
+}
+
+void Sweeper::check_boxes(const std::vector<int64_t> &boxes) const {
+    for (const int64_t b : boxes) check_index(b, n_, "box");
+}
+
+void Sweeper::rows(double dt, const int64_t *boxes, size_t n, double *rows, double *bounds) const {
+    for (size_t i = 0; i < n; ++i) check_index(boxes[i], n_, "box");
+    path_rows_and_bounds(dt, boxes, n, rows, bounds);
+}
+
+void Sweeper::path_rows_and_bounds(double dt, const int64_t *boxes, size_t n, double *rows, double *bounds) const {
+    for (size_t i = 0; i < n; ++i) {
+        const int64_t b = boxes[i];
+        path_row(state_.data() + kFrameStateSize * box_frame_[b], dt, X_CS_.data() + 16 * b, half_.data() + 3 * b,
+                 rows + kPathBoxSize * i);
+        swept_bounds(rows + kPathBoxSize * i, bounds + 6 * i, bounds + 6 * i + 3);
+    }
+}
+
+Sweeper::Touches Sweeper::touches(double dt, std::vector<int64_t> boxes, int64_t n_moving, bool all_others,
+                                  double fit_tolerance, const Tolerances &tol, double penetration, double creep,
+                                  int64_t *counts) const {
+    check_boxes(boxes);
+    if (n_moving < 0 || size_t(n_moving) > boxes.size())
+        throw std::invalid_argument("touches: n_moving out of range");
+    Touches out;
+    if (all_others) {
+        std::vector<uint8_t> in(n_, 0);
+        for (const int64_t b : boxes) in[b] = 1;
+        for (size_t b = 0; b < n_; ++b)
+            if (!in[b]) boxes.push_back(int64_t(b));
+    }
+    const size_t n = boxes.size();
+    out.rows.resize(kPathBoxSize * n);
+    std::vector<double> bounds(6 * n);
+    path_rows_and_bounds(dt, boxes.data(), n, out.rows.data(), bounds.data());
+    std::vector<int64_t> frame(n);
+    for (size_t i = 0; i < n; ++i) frame[i] = box_frame_[boxes[i]];
+    const FrameFilter filter{group_.data(), mask_.data(), mode_};
+    const auto pairs = candidate_pairs(bounds.data(), int64_t(n), n_moving, frame.data(), frame_body_.data(),
+                                       self_collides_.data(), filter);
+    const size_t m = pairs.size();
+    out.pairs = m;
+    out.pair_rows.resize(2 * m);
+    for (size_t k = 0; k < m; ++k) {
+        out.pair_rows[2 * k] = pairs[k].first;
+        out.pair_rows[2 * k + 1] = pairs[k].second;
+    }
+    out.tau.resize(m);
+    out.solves = first_touches(out.rows.data(), out.pair_rows.data(), m, fit_tolerance, tol, penetration, creep,
+                               out.tau.data(), nullptr, counts);
+    out.boxes = std::move(boxes);
+    return out;
+}
+
+}  // namespace boxccd
