@@ -12,7 +12,7 @@ imports pybullet).
    kinematic ones: static bodies the user moves).
 4. ``sweep``: the fast boxes' exact within-step paths (Bullet moves a centre of mass
    linearly with the post-solve velocity and turns it about a fixed axis:
-   ``_core/step_path.hpp``), their partners from pybullet's own broad phase on the
+   ``_core/paths/step_path.hpp``), their partners from pybullet's own broad phase on the
    swept bounds, the filters (``filters``: pybullet's own, mirrored), and each pair's
    first touch on conservatively fitted quadratic motions (the BMS solver).
 5. ``contacts``: the contacts in one time-ordered pass (``articulated`` finds those

@@ -1,7 +1,7 @@
 """Named columns of the core's per-frame state rows and per-box path rows.
 
 The C++ side names the same columns (``FrameState`` and ``PathRow`` in
-``_core/step_path.hpp``); ``_core.layouts()`` reports them and a test checks that
+``_core/paths/step_path.hpp``); ``_core.layouts()`` reports them and a test checks that
 both sides agree.
 """
 
@@ -19,7 +19,7 @@ STATE_SIZE = 13
 FRAME_STATE = {"position": POSITION, "orientation": ORIENTATION, "velocity": VELOCITY,
                "angular_velocity": ANGULAR_VELOCITY}
 
-# A box on its path over the step (see _core/step_path.hpp).
+# A box on its path over the step (see _core/paths/step_path.hpp).
 PATH_ROW = {"pose_after": slice(0, 16), "displacement": slice(16, 19), "axis": slice(19, 22),
             "angle": slice(22, 23), "box_in_frame": slice(23, 39), "half_extents": slice(39, 42)}
 ROW_SIZE = 42
