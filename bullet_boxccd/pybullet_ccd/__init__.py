@@ -125,6 +125,7 @@ class BoxCCD:
         self._moves_seen = self.world.journal.last_move  # moves made while building the world are not sweeps
         self._quiet, self._epoch = False, -1  # whether a step may skip every check (see step)
         self._known = False  # whether the frame-state rows hold the velocities the next step starts from
+        self._partial = False  # whether the world is set for a partial step (its time step and contact ERP)
         # Frames of the contact the world was taken back to as the partial step began (acted),
         # and those of them struck by an impact then (its impulse acts whole at that start).
         self._acted, self._struck = set(), set()
@@ -277,9 +278,10 @@ class BoxCCD:
                 self._take(piece, h)
                 t_start = time.perf_counter()
         finally:
-            if piece != h or elapsed:
+            if self._partial:
                 raw.setPhysicsEngineParameter(fixedTimeStep=h, contactERP=self.world.journal.contact_erp,
                                               physicsClientId=self.cid)
+                self._partial = False
         return events
 
     def _take(self, piece, h):
@@ -287,6 +289,7 @@ class BoxCCD:
         its contact ERP scaled by piece / h, so that the speed at which pybullet's solver
         pushes an overlap out (ERP times depth over the step) is the user's step's, not
         larger by h / piece; and the user's forces, which pybullet cleared, given again."""
+        self._partial = True
         raw.setPhysicsEngineParameter(fixedTimeStep=piece, contactERP=self.world.journal.contact_erp * piece / h,
                                       physicsClientId=self.cid)
         replay_impulses(self.cid, self.world.journal.impulses)

@@ -229,6 +229,7 @@ SIGNATURES = {
                                         "reportSolverAnalytics", "warmStartingFactor", "sparseSdfVoxelSize",
                                         "numNonContactInnerIterations", "physicsClientId")),),
     "setTimeStep": (Form(("timeStep", "physicsClientId"), 1),),
+    "setDefaultContactERP": (Form(("defaultContactERP", "physicsClientId"), 1),),
     "setGravity": (Form(("gravX", "gravY", "gravZ", "physicsClientId"), 3),),
     "resetBasePositionAndOrientation": (Form(("bodyUniqueId", "posObj", "ornObj", "physicsClientId"), 3),),
     "resetBaseVelocity": (Form(("objectUniqueId", "linearVelocity", "angularVelocity", "physicsClientId"), 1),),
@@ -523,6 +524,10 @@ def _set_engine_parameter(cid, a, result):
         j.params = next(_serial)
 
 
+def _set_contact_erp(cid, a, result):
+    journal(cid).contact_erp = float(a["defaultContactERP"])  # the same setting as contactERP (measured)
+
+
 def _set_params(cid, a, result):
     journal(cid).params = next(_serial)
 
@@ -689,6 +694,7 @@ WRAPPED = {
     "setCollisionFilterPair": _set_filter_pair,
     "setCollisionFilterGroupMask": _set_group_mask,
     "setPhysicsEngineParameter": _set_engine_parameter,
+    "setDefaultContactERP": _set_contact_erp,
     "setTimeStep": _set_params,
     "setGravity": _set_params,
     "resetBasePositionAndOrientation": _moved,
