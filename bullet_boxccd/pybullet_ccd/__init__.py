@@ -210,7 +210,7 @@ class BoxCCD:
             self._known = True
             fast = st.sweeper.fast(self._dt, st.moving, st.twists())
             self.stats.steps += 1
-            if fast is None and not self._chains.bodies:
+            if fast is None and (not self._chains.bodies or self._chains.idle(self._dt, self._sweep_reach)):
                 return []
             events = self._step(self._dt, 0.0, self._dt, stepped=True, fast=fast)
         else:

@@ -63,6 +63,8 @@ class _Body:
     q_spans: list = None  # coordinates and velocities lie in the flat q and qdot
     qdot_spans: list = None
     start: tuple = None  # (base velocity (6,), qdot) when the step began, if known
+    span: float = None  # farthest a box point can be from the base (m), without prismatic extensions
+    reach: float = None  # the smallest sweep reach of its boxes
 
 
 class Articulated:
@@ -99,6 +101,35 @@ class Articulated:
         self._rigid = np.setdiff1d(np.arange(len(tables.radius)), self.boxes, assume_unique=True)
 
     # ------------------------------------------------------------ reading
+    def idle(self, dt, sweep_reach) -> bool:
+        """Whether no point of any articulated body's boxes can have moved its box's sweep
+        reach in the step of dt just taken, from two reads per body (base velocity, joint
+        velocities) and a bound that holds in every configuration: a point moves no faster
+        than the base's speed plus, for the base's spin and each joint's rate, that rate
+        times the farthest any box point can be from the base (the sum of the body's joint
+        offsets and its largest box reach; a prismatic joint adds its extension)."""
+        cid = self.cid
+        for rec in self.bodies.values():
+            v, w = raw.getBaseVelocity(rec.body, physicsClientId=cid)
+            if rec.span is None:
+                ch, t = rec.chain, self.tables
+                boxes = [i for _, i in rec.boxes]
+                rec.span = float(np.sum(np.linalg.norm(ch.parent_pos, axis=1) + np.linalg.norm(ch.inertial_pos, axis=1))
+                                 + np.max(t.radius[boxes]))
+                rec.reach = float(np.min(sweep_reach[boxes]))
+            span, rate = rec.span, math.sqrt(w[0] ** 2 + w[1] ** 2 + w[2] ** 2)
+            if rec.moving_joints:
+                js = raw.getJointStatesMultiDof(rec.body, rec.moving_joints, physicsClientId=cid)
+                for j, s in zip(rec.moving_joints, js):
+                    if rec.chain.joint_type[j] == pybullet.JOINT_PRISMATIC:
+                        span += abs(s[0][0])
+                    rate += math.sqrt(sum(x * x for x in s[1]))
+            if (math.sqrt(v[0] ** 2 + v[1] ** 2 + v[2] ** 2) + rate * span) * dt > rec.reach:
+                return False
+        for rec in self.bodies.values():
+            rec.base_state = None  # not read this step: the next step's start is not known
+        return True
+
     def read(self, dt, state, known=True):
         """Read every articulated body after the step, and put its frames' poses after the
         step and their chords (as velocities) in ``state.rows``."""
