@@ -283,3 +283,25 @@ def test_fast_self_collision_is_caught(cid):
 
     assert run(False)
     assert not run(True)
+
+
+def test_a_partial_step_taken_again_for_a_spin_takes_robots_back_too(cid):
+    """A cube struck into a spin past Bullet's turn clamp has its partial step taken again,
+    shorter, from its start: every body goes back to that start, a robot too (in joint
+    space); nothing passes the wall and the resting arm stays where plain pybullet keeps it."""
+    _world(cid)
+    arm = _arm(cid)
+    p.resetJointState(arm, 0, -np.pi / 2, 0.0, physicsClientId=cid)
+    wall = p.createMultiBody(0, p.createCollisionShape(p.GEOM_BOX, halfExtents=[0.005, 1, 1], physicsClientId=cid),
+                             basePosition=[3, 0, 0], physicsClientId=cid)
+    cube = p.createMultiBody(1, p.createCollisionShape(p.GEOM_BOX, halfExtents=[0.05] * 3, physicsClientId=cid),
+                             basePosition=[2.6, 0.1, 0.05], baseOrientation=p.getQuaternionFromEuler([0.2, -0.1, 0.3]),
+                             physicsClientId=cid)
+    p.changeDynamics(cube, -1, linearDamping=0, angularDamping=0, maxJointVelocity=1e4, physicsClientId=cid)
+    p.resetBaseVelocity(cube, [1000, 0, 0], [10, -20, 30], physicsClientId=cid)
+    ccd = BoxCCD(cid)
+    for _ in range(12):
+        ccd.step()
+    assert ccd.stats.partial_steps >= 2 and ccd.stats.rewinds >= 1
+    assert p.getBasePositionAndOrientation(cube, physicsClientId=cid)[0][0] < 3.0
+    assert abs(p.getJointState(arm, 0, physicsClientId=cid)[0] + np.pi / 2) < 1e-6

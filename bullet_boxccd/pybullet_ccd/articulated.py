@@ -375,13 +375,13 @@ class Articulated:
             state.rows[f, TWIST] = 0.0
         rec.motion = None  # its paths are no longer this step's
 
-    def stop_all(self, tau, state, struck=()):
+    def stop_all(self, tau, state, struck=frozenset()):
         """The world taken back to tau: every articulated body where its path has it then
         (those with a frame ``struck`` at the start of the step keep their velocities after
         it: they took their impact's impulse whole then)."""
         for rec in self.bodies.values():
             if rec.motion is not None:
-                self.stop(rec, tau, state, back=not struck.intersection(rec.frames))
+                self.stop(rec, tau, state, back=not set(struck).intersection(rec.frames))
 
 
 def _goes_wrong(a, b, s_act):
