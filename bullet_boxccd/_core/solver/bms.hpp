@@ -1,11 +1,11 @@
 // The Minkowski difference of one pair of boxes: its generators, its 15 axes
-// and 30 facets (the seed's BMS planes), as functions of the normalised time s.
+// and 30 facets (the BMS planes), as functions of the normalised time s.
 //
 // Time: callers give t in [t0, t1]; here everything runs on s = (t - t0) /
 // (t1 - t0) in [0, 1].
 //
-// Seed vocabulary -> code. The seed's static box S is box A, its moving box M
-// is box B. Both may move: instead of the seed's relative motion M1 M2^-1 (a
+// The BMS algorithm's vocabulary -> code. Its static box S is box A, its moving box M
+// is box B. Both may move: instead of the algorithm's relative motion M1 M2^-1 (a
 // rational function of t) both stay in one frame, where the Minkowski
 // difference D(s) = A(s) + (-B(s)) has the same facets, and every quantity
 // stays a polynomial in s. A box has three edge directions (the generators):
@@ -14,7 +14,7 @@
 // facet axes, each spanned by two generators, and 30 facets (each axis with
 // both signs):
 //   axes 0..2  n = a_{i+1} x a_{i+2}  (face i of A against a vertex of B; the
-//              seed's OV: octant of M's SOR, vertex of S's SOR)
+//              the algorithm's OV: octant of M's SOR, vertex of S's SOR)
 //   axes 3..5  n = b_{j+1} x b_{j+2}  (face j of B against a vertex of A: VO)
 //   axes 6..14 n = a_i x b_j          (edge of A against edge of B: EE)
 // Facet k = 2 axis + (0 for +n, 1 for -n):
@@ -53,7 +53,7 @@ struct BoxInput {
     const double *coeffs;  // (3, 4, 4) row-major: M(t) = C0 + C1 t + C2 t^2
 };
 
-// The kind of a BMS facet, from the seed: the pairs of features that make it.
+// The kind of a BMS facet, from the BMS algorithm: the pairs of features that make it.
 enum class Kind : int8_t { OV = 0, VO = 1, EE = 2 };
 constexpr Kind axis_kind(int axis) { return axis < 3 ? Kind::OV : axis < 6 ? Kind::VO : Kind::EE; }
 constexpr Kind facet_kind(int facet) { return axis_kind(facet / 2); }

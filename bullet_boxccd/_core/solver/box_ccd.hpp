@@ -1,10 +1,10 @@
-// Exact time of impact of two boxes under quadratic affine motion: the seed's
-// BMS algorithm (shared/seed/box-ccd-algorithm.txt). The public contract of the
+// Exact time of impact of two boxes under quadratic affine motion: the
+// BMS algorithm. The public contract of the
 // core: inputs, their checks, outcomes, and the three queries (first contact,
 // route division, BMS planes at a time).
 //
 // t runs over [t0, t1] (the caller's t_range); results say t. The units, in the
-// order a query runs them (each file maps its part of the seed):
+// order a query runs them (each file maps its part of the BMS algorithm):
 //   bms.hpp       the pair's Minkowski difference in its own frame: generators,
 //                 15 axes, 30 facets (OV, VO, EE), cofactor polynomials
 //   culling.hpp   conservative advancement on fixed separating axes

@@ -1,4 +1,4 @@
-// Route division: the seed's octant switches. A vertex of one box's SOR (a face
+// Route division: the BMS algorithm's octant switches. A vertex of one box's SOR (a face
 // normal) switches octant of the other's when it crosses one of that SOR's
 // great circles: the sign change of S[q][i][l] = (face normal i of box q) .
 // (generator l of the other box), 18 functions of degree <= 6. Between two

@@ -4,7 +4,7 @@
 // degree <= 6:
 //   Q_k(s) = +-n.d - sum_g sig_g h_g (n.g) - tau_axis     (<= 0: touching)
 //          = n . (+-d - sum_g sig_g h_g g) - tau_axis
-// with sig_g the sign of n.g at the section's middle (the seed's t_0: "sample the
+// with sig_g the sign of n.g at the section's middle (the algorithm's t_0: "sample the
 // topology at a middle point") and tau the axis' touching tolerance plus its
 // rounding allowance there. The second form is the facet's plane through its
 // support point (a vertex combination of the two boxes): one dot product of the
