@@ -1,8 +1,9 @@
 """What the solver benchmarks share (benchmarks/solver.py, benchmarks/solver_tradeoff.py):
 the seeded pair families, the dense separating-axis reference, python-fcl's
 continuous collision on the same pairs, interleaved timing, and the report helpers.
-Rotations and quadratic fits come from the package (bullet_boxccd.motion), the
-separating-axis gap from its independent oracle (bullet_boxccd.testing).
+Rotations, quaternions and quadratic fits come from the package (bullet_boxccd.motion),
+the boxes' world vertices and their separating-axis gap from its independent oracle
+(bullet_boxccd.testing).
 
 Importing this module sets OPENBLAS_NUM_THREADS=1 before numpy loads (if unset):
 OpenBLAS's worker threads spin after each call and would take the second core
@@ -23,8 +24,8 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 import numpy as np  # noqa: E402
 
 from bullet_boxccd import Box, QuadraticMotion, _core  # noqa: E402
-from bullet_boxccd.motion import rotations, screw_coeffs  # noqa: E402
-from bullet_boxccd.testing import SIGNS, sat_gap  # noqa: E402
+from bullet_boxccd.motion import quat_to_matrix, rotations, screw_coeffs  # noqa: E402
+from bullet_boxccd.testing import SIGNS, motion_at, placed_vertices, sat_gap, world_vertices  # noqa: E402
 
 try:
     import fcl
@@ -48,15 +49,9 @@ FAMILIES = ("trans", "rot", "both")
 
 # ------------------------------------------------------------------- pairs
 def random_rotations(rng, n):
-    """(n, 3, 3) rotations, uniform over SO(3) (unit quaternions from a normal sample)."""
+    """(n, 3, 3) rotations, uniform over SO(3) (quaternions (w, x, y, z) from a normal sample)."""
     q = rng.normal(size=(n, 4))
-    q /= np.linalg.norm(q, axis=1, keepdims=True)
-    w, x, y, z = q.T
-    return np.stack([
-        np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)], -1),
-        np.stack([2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)], -1),
-        np.stack([2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)], -1),
-    ], -2)
+    return quat_to_matrix(q[:, [1, 2, 3, 0]])  # pybullet's order: (x, y, z, w)
 
 
 def unit_vectors(rng, n):
@@ -119,38 +114,27 @@ def our_objects(p: dict):
 
 # ---------------------------------------------------- dense reference (SAT)
 def rigid_pose(R0, p0, v, w, t):
-    """(n, 3, 4) poses at times t (scalar or (n,)) of the rigid motions: origin p0 + v t,
-    orientation rot(w t) R0."""
-    t = np.broadcast_to(np.asarray(t, dtype=float), (len(R0),))
-    P = np.empty((len(R0), 3, 4))
-    P[:, :, :3] = rotations(w * t[:, None]) @ R0
-    P[:, :, 3] = p0 + v * t[:, None]
+    """(n, ..., 3, 4) poses at times t (scalar, (n,) or (n, T)) of the n rigid motions:
+    origin p0 + v t, orientation rot(w t) R0."""
+    t = np.asarray(t, dtype=float)
+    t = np.broadcast_to(t, (len(R0),) + t.shape[1:])
+    at = (slice(None),) + (None,) * (t.ndim - 1)  # each motion's parameters against its times
+    P = np.empty(t.shape + (3, 4))
+    P[..., :3] = rotations(w[at] * t[..., None]) @ R0[at]
+    P[..., 3] = p0[at] + v[at] * t[..., None]
     return P
 
 
 def _vertices(M, h):
-    """(n, T, 8, 3) vertices of centred boxes (half extents h (n, 3)) placed by (n, T, 3, 4)."""
-    local = SIGNS[None] * h[:, None, :]
-    return np.einsum("ntij,nvj->ntvi", M[..., :3], local) + M[:, :, None, :, 3]
-
-
-def _quadratic_at(c, t):
-    t = t[..., None, None]
-    return c[:, None, 0, :3] + t * (c[:, None, 1, :3] + t * c[:, None, 2, :3])
-
-
-def _rigid_at(rigid, t):
-    R0, p0, v, w = rigid
-    P = np.empty(t.shape + (3, 4))
-    P[..., :3] = rotations(w[:, None, :] * t[..., None]) @ R0[:, None]
-    P[..., 3] = p0[:, None, :] + v[:, None, :] * t[..., None]
-    return P
+    """(n, ..., 8, 3) world vertices of centred boxes (half extents h (n, 3)) placed by
+    (n, ..., 3, 4) or (n, ..., 4, 4) matrices (bullet_boxccd.testing's)."""
+    at = (slice(None),) + (None,) * (M.ndim - 3)
+    return placed_vertices(M, -h[at], h[at])
 
 
 def gap_at(p: dict, t: np.ndarray) -> np.ndarray:
     """SAT gap of each pair at its own time t (n,) under the quadratic motion."""
-    T = t[:, None]
-    return sat_gap(_vertices(_quadratic_at(p["ca"], T), p["ha"]), _vertices(_quadratic_at(p["cb"], T), p["hb"]))[:, 0]
+    return sat_gap(world_vertices(p["ca"], -p["ha"], p["ha"], t), world_vertices(p["cb"], -p["hb"], p["hb"], t))
 
 
 def reference(p: dict, samples: int, rigid: bool = False, chunk: int = 8, desc: str = "reference"):
@@ -168,9 +152,9 @@ def reference(p: dict, samples: int, rigid: bool = False, chunk: int = 8, desc: 
         q = subset(p, slice(s, min(n, s + chunk)))
         T = np.broadcast_to(ts, (len(q["ha"]), samples))
         if rigid:
-            Ma, Mb = _rigid_at(q["rigid_a"], T), _rigid_at(q["rigid_b"], T)
+            Ma, Mb = rigid_pose(*q["rigid_a"], T), rigid_pose(*q["rigid_b"], T)
         else:
-            Ma, Mb = _quadratic_at(q["ca"], T), _quadratic_at(q["cb"], T)
+            Ma, Mb = motion_at(q["ca"][:, None], T), motion_at(q["cb"][:, None], T)
         g = sat_gap(_vertices(Ma, q["ha"]), _vertices(Mb, q["hb"]))
         mingap[s:s + len(g)] = g.min(1)
         hit = g <= 0.0

@@ -52,6 +52,7 @@ KIND = {0: "revolute", 1: "prismatic", 2: "spherical"}
 
 
 def matrix(q):
+    """scipy's rotation matrix of a quaternion: independent of the core and of bullet_boxccd.motion."""
     return Rotation.from_quat(q).as_matrix()
 
 

@@ -95,12 +95,10 @@ from __future__ import annotations
 
 import argparse
 import csv
-import inspect
 import os
 import platform
 import statistics
 import subprocess
-import sys
 import time
 
 import numpy as np
@@ -108,24 +106,22 @@ import pybullet as p
 from tqdm import tqdm
 
 from bullet_boxccd import BoxCCD
-from bullet_boxccd.pybullet_ccd.scenes import (  # the scene, shared with tradeoff.py and `boxccd sweep`
-    DT,
-    HALF,
-    N_PROJ,
-    NATIVE_RADIUS,
-    G,
-    build,
-    shots,
-)
-from bullet_boxccd.pybullet_ccd.scenes import below_ground as _below_ground
-from bullet_boxccd.pybullet_ccd.scenes import centre as _centre
-from bullet_boxccd.pybullet_ccd.scenes import crosses_wall as _crosses_wall
-
-sys.path.insert(0, os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "demos"))
-from _common import print_table  # noqa: E402  (the demos' markdown table)
+from bullet_boxccd.pybullet_ccd.tradeoff.grid import write_csv
+from bullet_boxccd.pybullet_ccd.tradeoff.scenes import DT, HALF, N_PROJ, G, build, run_trial  # shared with tradeoff.py
+from bullet_boxccd.validate.tables import markdown
 
 SUBSTEPS = (2, 4, 8, 16)
 PHASES = ("state", "broad_phase", "solve", "rewind")
+EXACT = ["plugin, no partial steps"]
+PLUGINS = ["plugin"] + EXACT
+METHODS = ["plain", "plugin"] + EXACT + [f"substeps {k}" for k in SUBSTEPS] + ["plain (maximal)",
+                                                                                "native CCD (maximal)"]
+EXTRA_METHODS = ["plain", "plugin"] + EXACT + ["substeps 8", "substeps 16", "native CCD (maximal)"]
+COUNTERS = ("swept_boxes", "candidate_pairs", "solver_rows", "contacts", "rewinds", "partial_steps")
+
+
+def print_table(title, header, rows):
+    print(f"\n{title}\n{markdown(header, rows)}")
 
 
 # ------------------------------------------------------------------ runs
@@ -133,42 +129,39 @@ def _world_of(method):
     return "native" if method.startswith("native") else ("maximal" if "maximal" in method else "multibody")
 
 
-def run_trial(world, method, seed, window, ccds):
-    """One trial: returns (mean us per step, [(projectile, aimed at, final centre)] of the tunneled).
+def _config(method):
+    """The method as a configuration of ``tradeoff.scenes.run_trial``: (name, kind, substeps)."""
+    if method.startswith("plugin"):
+        return method, "ccd", 0
+    if method.startswith("substeps"):
+        return method, "plain", int(method.split()[1])
+    return method, {"multibody": "plain"}.get(_world_of(method), _world_of(method)), 0
+
+
+def trial(world, method, seed, window, ccds):
+    """One trial (the scene module's, untimed checks off): returns (mean us per step,
+    [(projectile, aimed at, final centre)] of the tunneled).
 
     ``ccds`` keeps one BoxCCD per (world, method) across trials, so its stats add up."""
-    cid, state, proj, _ = world
-    p.restoreState(state, physicsClientId=cid)
-    k = int(method.split()[1]) if method.startswith("substeps") else 0
-    p.setPhysicsEngineParameter(fixedTimeStep=DT, numSubSteps=k, physicsClientId=cid)
-    for b, (pos, q, v, w, _) in zip(proj, shots(seed)):
-        p.resetBasePositionAndOrientation(b, pos.tolist(), q.tolist(), physicsClientId=cid)
-        p.resetBaseVelocity(b, v.tolist(), w.tolist(), physicsClientId=cid)
-        if method.startswith("native"):  # a world of its own: restoreState leaves these settings alone
-            p.changeDynamics(b, -1, ccdSweptSphereRadius=NATIVE_RADIUS, contactProcessingThreshold=0.0,
-                             physicsClientId=cid)
+    cid = world[0]
+    ccd = None
     if method.startswith("plugin"):
         if (cid, method) not in ccds:
             ccds[(cid, method)] = BoxCCD(cid, max_partial_steps=0) if "partial" in method else BoxCCD(cid)
-        step = ccds[(cid, method)].step
-    else:
-        def step():
-            p.stepSimulation(physicsClientId=cid)
-    total = 0.0
-    prev = [_centre(cid, b) for b in proj]
-    through_wall = [False] * len(proj)
-    for _ in range(window):
-        t0 = time.perf_counter()
-        step()
-        total += time.perf_counter() - t0
-        for i, b in enumerate(proj):  # untimed
-            c = _centre(cid, b)
-            through_wall[i] |= _crosses_wall(prev[i], c)
-            prev[i] = c
-    kinds = [s[4] for s in shots(seed)]
-    tunnel = [(i, kinds[i], tuple(c)) for i, c in enumerate(prev)
-              if (through_wall[i] and c[0] > 0.0) or _below_ground(c)]
-    return 1e6 * total / window, tunnel
+        ccd = ccds[(cid, method)]
+    r = run_trial(world, _config(method), seed, window, ccd, checks=False)
+    return r["us"], r["tunnel"]
+
+
+def build_worlds(n):
+    """The scene of n boxes built three ways: multibody, maximal, and maximal for native CCD (a
+    world of its own: restoreState leaves the native CCD settings alone)."""
+    return {w: build(n, w != "multibody") for w in ("multibody", "maximal", "native")}
+
+
+def close_worlds(worlds):
+    for w in worlds.values():
+        p.disconnect(w[0])
 
 
 def _code_version():
@@ -211,21 +204,22 @@ def _per_call(fn, calls):
     return 1e6 * (time.process_time() - t0) / calls
 
 
-def small_worlds(repeats, csv_path):
-    """The small-world rows: resting 1 and 10, one slider."""
-    rows = []
-    for n in (1, 10):
-        cid, cubes = _small_world(n, False)
-        ccd = BoxCCD(cid)
-        times = {"plain": [], "reads": [], "plugin": []}
-        for _ in range(repeats):  # in turn: a burst of load hits all three alike
-            times["plain"].append(_per_call(lambda: p.stepSimulation(physicsClientId=cid), 1000))
-            times["reads"].append(_per_call(lambda: [p.getBaseVelocity(b, physicsClientId=cid) for b in cubes], 1000))
-            times["plugin"].append(_per_call(ccd.step, 1000))
-        best = {k: min(v) for k, v in times.items()}
-        rows.append(dict(world=f"{n} resting", plain_us=best["plain"], reads_us=best["reads"],
-                         plugin_us=best["plugin"], swept=ccd.stats.swept_boxes, steps=ccd.stats.steps))
-        p.disconnect(cid)
+def _resting_row(n, repeats):
+    cid, cubes = _small_world(n, False)
+    ccd = BoxCCD(cid)
+    times = {"plain": [], "reads": [], "plugin": []}
+    for _ in range(repeats):  # in turn: a burst of load hits all three alike
+        times["plain"].append(_per_call(lambda: p.stepSimulation(physicsClientId=cid), 1000))
+        times["reads"].append(_per_call(lambda: [p.getBaseVelocity(b, physicsClientId=cid) for b in cubes], 1000))
+        times["plugin"].append(_per_call(ccd.step, 1000))
+    best = {k: min(v) for k, v in times.items()}
+    row = dict(world=f"{n} resting", plain_us=best["plain"], reads_us=best["reads"], plugin_us=best["plugin"],
+               swept=ccd.stats.swept_boxes, steps=ccd.stats.steps)
+    p.disconnect(cid)
+    return row
+
+
+def _slider_row(repeats):
     times, swept, steps = {"plain": [], "reads": [], "plugin": []}, 0, 0
     for _ in range(repeats):
         for method in times:
@@ -241,8 +235,13 @@ def small_worlds(repeats, csv_path):
             p.disconnect(cid)
     best = {k: min(v) for k, v in times.items()}
     # For the slider "reads" is timed with its step: the read alone is that less plain.
-    rows.append(dict(world="1 sliding at 10 m/s", plain_us=best["plain"], reads_us=best["reads"] - best["plain"],
-                     plugin_us=best["plugin"], swept=swept, steps=steps))
+    return dict(world="1 sliding at 10 m/s", plain_us=best["plain"], reads_us=best["reads"] - best["plain"],
+                plugin_us=best["plugin"], swept=swept, steps=steps)
+
+
+def small_worlds(repeats, csv_path):
+    """The small-world rows: resting 1 and 10, one slider."""
+    rows = [_resting_row(1, repeats), _resting_row(10, repeats), _slider_row(repeats)]
     table = []
     for r in rows:
         r["overhead_in_reads"] = (r["plugin_us"] - r["plain_us"]) / r["reads_us"]
@@ -257,14 +256,167 @@ def small_worlds(repeats, csv_path):
                 "calls)",
                 ("world", "plain", "reads", "plugin", "overhead / reads", "x plain", "swept/steps", "target"),
                 table)
-    os.makedirs(os.path.dirname(os.path.abspath(csv_path)), exist_ok=True)
-    with open(csv_path, "w", newline="") as f:
-        wr = csv.DictWriter(f, fieldnames=list(rows[0]))
-        wr.writeheader()
-        wr.writerows({k: round(v, 3) if isinstance(v, float) else v for k, v in r.items()} for r in rows)
+    write_csv([{k: round(v, 3) if isinstance(v, float) else v for k, v in r.items()} for r in rows], csv_path)
 
 
-def main(argv=None):
+# ------------------------------------------------------------------ scenes
+def _quick_skip(n):
+    return {"substeps 16"} | ({"substeps 8", "plugin, no partial steps"} if n >= 1000 else set())
+
+
+def scene_rows(n, seeds, window, res):
+    """The table rows of one scene from {method: (us per trial, tunneled, stats)}, and its plugin phase rows."""
+    rows, phase_rows = [], []
+    plain = statistics.median(res["plain"][0])
+    for m in METHODS:
+        if m not in res:
+            continue
+        us, nt, stats = res[m]
+        med = statistics.median(us)
+        row = dict(n_boxes=n, method=m, us_per_step_median=round(med, 1), us_per_step_min=round(min(us), 1),
+                   ratio_to_plain=round(med / plain, 3), tunneled=nt, shots=N_PROJ * len(seeds),
+                   trials=len(seeds), window_steps=window)
+        if stats is not None:
+            steps = max(stats.steps, 1)
+            for ph in PHASES:
+                row[f"plugin_{ph}_us_per_step"] = round(1e6 * stats.seconds[ph] / steps, 1)
+            for c in COUNTERS:
+                row[f"plugin_{c}"] = getattr(stats, c)
+            phase_rows.append((n, m, steps, stats))
+        rows.append(row)
+    return rows, phase_rows
+
+
+def run_scenes(args, trials, window):
+    """Every scene size: trials of every method. Returns (rows, plugin phase rows, tunnel log)."""
+    n_trials = {n: (trials if n <= 100 else max(1, trials // 3)) for n in args.sizes}
+    methods = {n: [m for m in METHODS if not (args.quick and m in _quick_skip(n))] for n in args.sizes}
+    bar = tqdm(total=sum(n_trials[n] * len(methods[n]) for n in args.sizes), desc="runs", unit="trial")
+    results, phase_rows, tunnel_log = [], [], []
+    for n in args.sizes:
+        seeds = [args.seed + t for t in range(n_trials[n])]
+        win = window if n < 1000 else min(window, 72)  # the impacts come by step 61
+        worlds = build_worlds(n)
+        res = {m: ([], 0, None) for m in methods[n]}
+        ccds = {}
+        # Seeds outer, methods inner: a burst of load from elsewhere hits every method alike.
+        for seed in seeds:
+            for m in methods[n]:
+                w = worlds[_world_of(m)]
+                us, tun = trial(w, m, seed, win, ccds)
+                st = ccds.get((w[0], m))
+                res[m] = (res[m][0] + [us], res[m][1] + len(tun), st.stats if st else None)
+                tunnel_log += [(n, m, seed) + tuple(t) for t in tun]
+                bar.update(1)
+        close_worlds(worlds)
+        rows, phases = scene_rows(n, seeds, win, res)
+        results += rows
+        phase_rows += phases
+    bar.close()
+    return results, phase_rows, tunnel_log
+
+
+def run_extra_seeds(seeds, window):
+    """Tunneling only, more seeds: the 10-box scene (the pile is off the projectiles' paths).
+    Returns [(method, tunneled, shots, median us, stats)] and the tunnel log."""
+    extra, tunnel_log = [], []
+    worlds = build_worlds(10)
+    bar = tqdm(total=len(seeds) * len(EXTRA_METHODS), desc="extra seeds", unit="trial")
+    ccds = {}
+    for m in EXTRA_METHODS:
+        w = worlds[_world_of(m)]
+        us, nt = [], 0
+        for seed in seeds:
+            u, tun = trial(w, m, seed, window, ccds)
+            us.append(u)
+            nt += len(tun)
+            tunnel_log += [("10 (extra)", m, seed) + tuple(t) for t in tun]
+            bar.update(1)
+        st = ccds.get((w[0], m))
+        extra.append((m, nt, N_PROJ * len(seeds), statistics.median(us), st.stats if st else None))
+    bar.close()
+    close_worlds(worlds)
+    return extra, tunnel_log
+
+
+# ------------------------------------------------------------------ reports
+def print_scenes(results, phase_rows):
+    rows = [(r["n_boxes"], r["method"], f"{r['us_per_step_median']:.0f}", f"{r['us_per_step_min']:.0f}",
+             f"{r['ratio_to_plain']:.2f}", f"{r['tunneled']}/{r['shots']}") for r in results]
+    print_table("time per step and tunneling (us/step: median (and min) over trials of the mean over the window)",
+                ("boxes", "method", "us/step", "min", "x plain", "tunneled/shots"), rows)
+    prow = []
+    for n, m, steps, st in phase_rows:
+        per = {ph: 1e6 * st.seconds[ph] / steps for ph in PHASES}
+        sweep = sum(per.values())
+        prow.append((n, m, steps, *(f"{per[ph]:.0f}" for ph in PHASES), f"{sweep:.0f}", st.swept_boxes,
+                     st.candidate_pairs, st.solver_rows, st.contacts, st.rewinds, st.partial_steps))
+    print_table("plugin phases (us per step, mean over all trials) and counters (totals over all trials)",
+                ("boxes", "method", "steps", "state", "broad", "solve", "rewind", "sweep total",
+                 "swept", "pairs", "rows", "contacts", "rewinds", "partial steps"), prow)
+
+
+def print_extra(extra, seeds, window):
+    """The extra seeds' table; returns their CSV rows."""
+    print_table(f"tunneling over {len(seeds)} more seeds ({seeds[0]}..{seeds[-1]}), 10 boxes",
+                ("method", "tunneled/shots", "us/step", "CCD rewinds", "partial steps"),
+                [(m, f"{nt}/{shots_}", f"{us:.0f}", st.rewinds if st else "", st.partial_steps if st else "")
+                 for m, nt, shots_, us, st in extra])
+    return [dict(n_boxes=10, method=f"{m} [extra seeds]", us_per_step_median=round(us, 1), tunneled=nt, shots=shots_,
+                 trials=len(seeds), window_steps=window) for m, nt, shots_, us, _st in extra]
+
+
+def _zero_tunneling_verdict(plug, zero):
+    if plug["tunneled"]:
+        return f"tunneled {plug['tunneled']}/{plug['shots']}: NOT met"
+    if not zero:
+        return (f"{plug['us_per_step_median']:.0f} us at zero tunneling; no substep count up to "
+                f"{SUBSTEPS[-1]} reaches zero: met")
+    best = min(zero, key=lambda r: r["us_per_step_median"])
+    ok = plug["us_per_step_median"] < best["us_per_step_median"]
+    return (f"{plug['us_per_step_median']:.0f} us vs cheapest zero-tunneling {best['method']} "
+            f"{best['us_per_step_median']:.0f} us: {'met' if ok else 'NOT met'}")
+
+
+def print_targets(results, sizes):
+    print("\ntargets")
+    by = {(r["n_boxes"], r["method"]): r for r in results}
+    for pm in PLUGINS:
+        if (100, "plain") in by and (100, pm) in by:
+            ov = by[(100, pm)]["us_per_step_median"] / by[(100, "plain")]["us_per_step_median"] - 1.0
+            print(f"  {pm} overhead at 100 boxes: {100 * ov:.0f} % of a plain step (target <= 30 %): "
+                  f"{'met' if ov <= 0.30 else 'NOT met'}")
+    for n in sizes:
+        zero = [by[(n, f"substeps {k}")] for k in SUBSTEPS
+                if (n, f"substeps {k}") in by and by[(n, f"substeps {k}")]["tunneled"] == 0]
+        for pm in PLUGINS:
+            if (n, pm) in by:  # --quick skips some
+                print(f"  {n} boxes, {pm} at zero tunneling cheaper than substepping at zero: "
+                      f"{_zero_tunneling_verdict(by[(n, pm)], zero)}")
+
+
+def print_tunneled(tunnel_log, tunneled_csv):
+    shown = [t for t in tunnel_log if t[1].startswith("plugin") or t[1] in ("native CCD (maximal)", "substeps 8",
+                                                                               "substeps 16")]
+    print("\ntunneled with plugin, native CCD, substeps 8 or 16 (boxes, method, seed, projectile, aimed at, "
+          f"final centre){'' if shown else ': none'}")
+    for n, m, seed, i, kind, pos in shown:
+        print(f"  {n}, {m}, seed {seed}, #{i}, {kind}, ({pos[0]:.3f}, {pos[1]:.3f}, {pos[2]:.3f})")
+    print(f"(every tunneled projectile: {tunneled_csv})")
+
+
+def write_csvs(results, tunnel_log, csv_path, tunneled_csv):
+    write_csv(results, csv_path)
+    with open(tunneled_csv, "w", newline="") as f:
+        wr = csv.writer(f)
+        wr.writerow(("n_boxes", "method", "seed", "projectile", "aimed_at", "x", "y", "z"))
+        for n, m, seed, i, kind, pos in tunnel_log:
+            wr.writerow((n, m, seed, i, kind) + tuple(round(float(x), 4) for x in pos))
+    print(f"\nwritten: {csv_path}")
+
+
+# ------------------------------------------------------------------ main
+def parse_args(argv):
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--quick", action="store_true",
                     help="2 trials (1 at 1000 boxes), 64-step window, no substeps 16 (nor 8, nor no partial steps, "
@@ -277,159 +429,34 @@ def main(argv=None):
     ap.add_argument("--sizes", type=int, nargs="+", default=[10, 100, 1000])
     ap.add_argument("--csv", default=os.path.join(os.path.dirname(os.path.abspath(__file__)), "results", "plugin.csv"))
     args = ap.parse_args(argv)
-    trials = args.trials or (2 if args.quick else 6)
-    window = args.window or (64 if args.quick else 120)
+    args.trials = args.trials or (2 if args.quick else 6)
+    args.window = args.window or (64 if args.quick else 120)
     if args.extra_seeds is None:
         args.extra_seeds = 20 if args.quick else 100
-    exact = ["plugin, no partial steps"]
-    methods = (["plain", "plugin"] + exact + [f"substeps {k}" for k in SUBSTEPS]
-               + ["plain (maximal)", "native CCD (maximal)"])
+    return args
 
+
+def main(argv=None):
+    args = parse_args(argv)
+    results_dir = os.path.dirname(args.csv)
     print(f"machine: {platform.platform()}, {platform.processor() or platform.machine()}, "
           f"python {platform.python_version()}, pybullet API {p.getAPIVersion()}, numpy {np.__version__}")
     print(f"code: {_code_version()}")
-    print(f"seed {args.seed}, window {window} steps of 1/240 s (at most 72 from 1000 boxes on), "
+    print(f"seed {args.seed}, window {args.window} steps of 1/240 s (at most 72 from 1000 boxes on), "
           f"{N_PROJ} projectiles per trial")
 
-    small_worlds(3 if args.quick else 9, os.path.join(os.path.dirname(args.csv), "plugin_small.csv"))
-
-    n_trials = {n: (trials if n <= 100 else max(1, trials // 3)) for n in args.sizes}
-    def quick_skip(n):
-        return {"substeps 16"} | ({"substeps 8", "plugin, no partial steps"} if n >= 1000 else set())
-
-    bar = tqdm(total=sum(n_trials[n] * len([m for m in methods if not (args.quick and m in quick_skip(n))])
-                         for n in args.sizes), desc="runs", unit="trial")
-    results, phase_rows, tunnel_log = [], [], []
-    for n in args.sizes:
-        seeds = [args.seed + t for t in range(n_trials[n])]
-        win = window if n < 1000 else min(window, 72)  # the impacts come by step 61
-        worlds = {w: build(n, w != "multibody") for w in ("multibody", "maximal", "native")}
-        # Seeds outer, methods inner: a burst of load from elsewhere hits every method alike.
-        ms = [m for m in methods if not (args.quick and m in quick_skip(n))]
-        res = {m: ([], 0, None) for m in ms}
-        ccds = {}
-        for seed in seeds:
-            for m in ms:
-                w = worlds[_world_of(m)]
-                us, tun = run_trial(w, m, seed, win, ccds)
-                st = ccds.get((w[0], m))
-                res[m] = (res[m][0] + [us], res[m][1] + len(tun), st.stats if st else None)
-                tunnel_log += [(n, m, seed) + t for t in tun]
-                bar.update(1)
-        for w in worlds.values():
-            p.disconnect(w[0])
-        plain = statistics.median(res["plain"][0])
-        for m in methods:
-            if m not in res:
-                continue
-            us, nt, stats = res[m]
-            med = statistics.median(us)
-            row = dict(n_boxes=n, method=m, us_per_step_median=round(med, 1), us_per_step_min=round(min(us), 1),
-                       ratio_to_plain=round(med / plain, 3), tunneled=nt, shots=N_PROJ * len(seeds),
-                       trials=len(seeds), window_steps=win)
-            if stats is not None:
-                steps = max(stats.steps, 1)
-                for ph in PHASES:
-                    row[f"plugin_{ph}_us_per_step"] = round(1e6 * stats.seconds[ph] / steps, 1)
-                for c in ("swept_boxes", "candidate_pairs", "solver_rows", "contacts", "rewinds", "partial_steps"):
-                    row[f"plugin_{c}"] = getattr(stats, c)
-                phase_rows.append((n, m, steps, stats))
-            results.append(row)
-    # Tunneling only, more seeds: the 10-box scene (the pile is off the projectiles' paths).
-    extra_methods = ["plain", "plugin"] + exact + ["substeps 8", "substeps 16", "native CCD (maximal)"]
+    small_worlds(3 if args.quick else 9, os.path.join(results_dir, "plugin_small.csv"))
+    results, phase_rows, tunnel_log = run_scenes(args, args.trials, args.window)
     extra_seeds = [args.seed + 1000 + t for t in range(args.extra_seeds)]
-    extra = []
-    if extra_seeds:
-        worlds = {w: build(10, w != "multibody") for w in ("multibody", "maximal", "native")}
-        bar2 = tqdm(total=len(extra_seeds) * len(extra_methods), desc="extra seeds", unit="trial")
-        ccds = {}
-        for m in extra_methods:
-            w = worlds[_world_of(m)]
-            us, nt = [], 0
-            for seed in extra_seeds:
-                u, tun = run_trial(w, m, seed, window, ccds)
-                us.append(u)
-                nt += len(tun)
-                tunnel_log += [("10 (extra)", m, seed) + t for t in tun]
-                bar2.update(1)
-            st = ccds.get((w[0], m))
-            extra.append((m, nt, N_PROJ * len(extra_seeds), statistics.median(us), st.stats if st else None))
-        bar2.close()
-        for w in worlds.values():
-            p.disconnect(w[0])
-    bar.close()
+    extra, extra_log = run_extra_seeds(extra_seeds, args.window) if extra_seeds else ([], [])
 
-    rows = [(r["n_boxes"], r["method"], f"{r['us_per_step_median']:.0f}", f"{r['us_per_step_min']:.0f}",
-             f"{r['ratio_to_plain']:.2f}", f"{r['tunneled']}/{r['shots']}") for r in results]
-    print_table("time per step and tunneling (us/step: median (and min) over trials of the mean over the window)",
-                ("boxes", "method", "us/step", "min", "x plain", "tunneled/shots"), rows)
-
-    prow = []
-    for n, m, steps, st in phase_rows:
-        per = {ph: 1e6 * st.seconds[ph] / steps for ph in PHASES}
-        sweep = sum(per.values())
-        prow.append((n, m, steps, *(f"{per[ph]:.0f}" for ph in PHASES), f"{sweep:.0f}", st.swept_boxes,
-                     st.candidate_pairs, st.solver_rows, st.contacts, st.rewinds, st.partial_steps))
-    print_table("plugin phases (us per step, mean over all trials) and counters (totals over all trials)",
-                ("boxes", "method", "steps", "state", "broad", "solve", "rewind", "sweep total",
-                 "swept", "pairs", "rows", "contacts", "rewinds", "partial steps"), prow)
-
+    print_scenes(results, phase_rows)
     if extra:
-        print_table(f"tunneling over {len(extra_seeds)} more seeds ({args.seed + 1000}..{extra_seeds[-1]}), 10 boxes",
-                    ("method", "tunneled/shots", "us/step", "CCD rewinds", "partial steps"),
-                    [(m, f"{nt}/{shots_}", f"{us:.0f}", st.rewinds if st else "", st.partial_steps if st else "")
-                     for m, nt, shots_, us, st in extra])
-        for m, nt, shots_, us, _st in extra:
-            results.append(dict(n_boxes=10, method=f"{m} [extra seeds]", us_per_step_median=round(us, 1),
-                                tunneled=nt, shots=shots_, trials=len(extra_seeds), window_steps=window))
-
-    print("\ntargets")
-    by = {(r["n_boxes"], r["method"]): r for r in results}
-    plugins = ["plugin"] + exact
-    for pm in plugins:
-        if (100, "plain") in by and (100, pm) in by:
-            ov = by[(100, pm)]["us_per_step_median"] / by[(100, "plain")]["us_per_step_median"] - 1.0
-            print(f"  {pm} overhead at 100 boxes: {100 * ov:.0f} % of a plain step (target <= 30 %): "
-                  f"{'met' if ov <= 0.30 else 'NOT met'}")
-    for n in args.sizes:
-        zero = [by[(n, f"substeps {k}")] for k in SUBSTEPS
-                if (n, f"substeps {k}") in by and by[(n, f"substeps {k}")]["tunneled"] == 0]
-        for pm in plugins:
-            if (n, pm) not in by:  # --quick skips some
-                continue
-            plug = by[(n, pm)]
-            if plug["tunneled"]:
-                verdict = f"tunneled {plug['tunneled']}/{plug['shots']}: NOT met"
-            elif not zero:
-                verdict = (f"{plug['us_per_step_median']:.0f} us at zero tunneling; no substep count up to "
-                           f"{SUBSTEPS[-1]} reaches zero: met")
-            else:
-                best = min(zero, key=lambda r: r["us_per_step_median"])
-                ok = plug["us_per_step_median"] < best["us_per_step_median"]
-                verdict = (f"{plug['us_per_step_median']:.0f} us vs cheapest zero-tunneling {best['method']} "
-                           f"{best['us_per_step_median']:.0f} us: {'met' if ok else 'NOT met'}")
-            print(f"  {n} boxes, {pm} at zero tunneling cheaper than substepping at zero: {verdict}")
-
-    shown = [t for t in tunnel_log if t[1].startswith("plugin") or t[1] in ("native CCD (maximal)", "substeps 8",
-                                                                               "substeps 16")]
-    print("\ntunneled with plugin, native CCD, substeps 8 or 16 (boxes, method, seed, projectile, aimed at, "
-          f"final centre){'' if shown else ': none'}")
-    for n, m, seed, i, kind, pos in shown:
-        print(f"  {n}, {m}, seed {seed}, #{i}, {kind}, ({pos[0]:.3f}, {pos[1]:.3f}, {pos[2]:.3f})")
-    print(f"(every tunneled projectile: {os.path.join(os.path.dirname(args.csv), 'plugin_tunneled.csv')})")
-
-    os.makedirs(os.path.dirname(os.path.abspath(args.csv)), exist_ok=True)
-    keys = list(dict.fromkeys(k for r in results for k in r))
-    with open(args.csv, "w", newline="") as f:
-        wr = csv.DictWriter(f, fieldnames=keys)
-        wr.writeheader()
-        wr.writerows(results)
-    with open(os.path.join(os.path.dirname(args.csv), "plugin_tunneled.csv"), "w", newline="") as f:
-        wr = csv.writer(f)
-        wr.writerow(("n_boxes", "method", "seed", "projectile", "aimed_at", "x", "y", "z"))
-        for n, m, seed, i, kind, pos in tunnel_log:
-            wr.writerow((n, m, seed, i, kind) + tuple(round(float(x), 4) for x in pos))
-    print(f"\nwritten: {args.csv}")
+        results += print_extra(extra, extra_seeds, args.window)
+    print_targets(results, args.sizes)
+    tunneled_csv = os.path.join(results_dir, "plugin_tunneled.csv")
+    print_tunneled(tunnel_log + extra_log, tunneled_csv)
+    write_csvs(results, tunnel_log + extra_log, args.csv, tunneled_csv)
 
 
 if __name__ == "__main__":

@@ -44,7 +44,7 @@ Truth (computed once per pair, shared by every configuration):
 * contact time of a hitting pair: the sign change of the oracle's 40-digit
   mpmath SAT gap ``mp_gap`` bracketed in [t - 1e-6, t + 1e-6] around the default
   solver's answer t (or the float64 oracle's, if the default misses or the
-  bracket fails): float64 bisection (``oracle.sat_gap``) narrows it to ~1e-13,
+  bracket fails): float64 bisection (the oracle's ``Case.gap``) narrows it to ~1e-13,
   the narrowed bracket is widened by 1e-12 on each side and its end signs are
   checked in mpmath (falling back to the full bracket otherwise), then mpmath
   bisection runs until the bracket is below 1e-18. t_true is kept as a
@@ -76,14 +76,16 @@ import csv
 import math
 import os
 import time
+from dataclasses import dataclass, field
 
 import _shared as S  # sets OPENBLAS_NUM_THREADS before numpy loads
 import mpmath as mp
 import numpy as np
 
 from bullet_boxccd import Tolerances, time_of_impact, time_of_impact_batch
-from bullet_boxccd.testing import Case, mp_gap
+from bullet_boxccd.testing import Case, mp_bisect, mp_gap
 from bullet_boxccd.testing import reference as oracle_reference
+from bullet_boxccd.pybullet_ccd.tradeoff.grid import pareto as _pareto
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.dirname(HERE)
@@ -131,18 +133,11 @@ def case_of(p, i) -> Case:
     return Case(-p["ha"][i], p["ha"][i], p["ca"][i], -p["hb"][i], p["hb"][i], p["cb"][i], 0.0, 1.0)
 
 
-def mp_bisect(case: Case, lo, hi, tol=mp.mpf("1e-18")):
-    """Sign change of mp_gap in [lo, hi] (gap(lo) > 0 >= gap(hi) checked by the caller)."""
+def mp_crossing(case: Case, lo, hi, tol=mp.mpf("1e-18")):
+    """Sign change of mp_gap in [lo, hi] (gap(lo) > 0 >= gap(hi) checked by the caller),
+    bisected at 40 digits: (its midpoint, mp_gap calls)."""
     with mp.workdps(40):
-        lo, hi = mp.mpf(lo), mp.mpf(hi)
-        n = 0
-        while hi - lo > tol and n < 80:
-            mid = (lo + hi) / 2
-            if mp_gap(case, mid) > 0:
-                lo = mid
-            else:
-                hi = mid
-            n += 1
+        lo, hi, n = mp_bisect(case, mp.mpf(lo), mp.mpf(hi), tol, max_steps=80)
         return (lo + hi) / 2, n
 
 
@@ -165,7 +160,7 @@ def refine(case: Case, t_guess: float, half: float = 1e-6):
     calls += 2
     if mp_gap(case, a) > 0 and mp_gap(case, b) <= 0:
         lo, hi = a, b
-    t, n = mp_bisect(case, lo, hi)
+    t, n = mp_crossing(case, lo, hi)
     return t, calls + n
 
 
@@ -314,14 +309,8 @@ def fmt(x, kind):
 
 
 def pareto(points):
-    """Indices of the non-dominated (x, y) points (both minimised)."""
-    idx = sorted(range(len(points)), key=lambda k: (points[k][0], points[k][1]))
-    front, best = [], math.inf
-    for k in idx:
-        if points[k][1] < best:
-            front.append(k)
-            best = points[k][1]
-    return front
+    """Indices of the non-dominated (x, y) points (both minimised): the plugin grid's."""
+    return _pareto([x for x, _ in points], [y for _, y in points])
 
 
 def plot(rows, fams, path):
@@ -415,115 +404,112 @@ def plot(rows, fams, path):
 
 
 # --------------------------------------------------------------------------------------
-# main
+# one family
 # --------------------------------------------------------------------------------------
-def main(argv=None):
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--quick", action="store_true", help="a < 30 s version (fewer pairs and repeats)")
-    ap.add_argument("--seed", type=int, default=12345)
-    ap.add_argument("--n", type=int, default=None, help="pairs per family (about half hit)")
-    ap.add_argument("--repeats", type=int, default=None, help="timing repeats (median)")
-    ap.add_argument("--csv", default=os.path.join(HERE, "results", "solver_tradeoff.csv"))
-    ap.add_argument("--png", default=os.path.join(ROOT, "docs", "solver_tradeoff.png"))
-    args = ap.parse_args(argv)
-    n = args.n or (45 if args.quick else 400)
-    repeats = args.repeats or (5 if args.quick else 41)
-    samples = 600 if args.quick else 1000
-    t_start = time.perf_counter()
+@dataclass
+class FamilyRun:
+    """One family's pairs, truth and rows (every configuration's, ours and FCL's)."""
 
-    info = S.machine_info()
-    print("# bullet_boxccd solver trade-off: knobs vs contact-time error and time per query")
-    for line in info:
-        print(line)
-    print(f"seed {args.seed}, {n} pairs per family, timing: median of {repeats} repeats; "
-          f"late = t > t_true + {LATE:g}; FCL: conservative advancement, GJK libccd")
+    fam: int
+    fname: str
+    p: dict
+    t_def: np.ndarray  # the default configuration's answers
+    truth: dict
+    rows: list = field(default_factory=list)
+    notes: list = field(default_factory=list)
+    incidents: list = field(default_factory=list)  # our late answers, misses and false hits
 
-    configs = our_configs()
-    tol_of = {label: tol for _, label, tol in configs}
-    fconfs = fcl_configs(args.quick) if fcl is not None else []
-    rows, notes, incidents = [], [], []
-    fams = list(S.FAMILIES)
-    for fam, fname in enumerate(fams):
-        p = S.make_pairs(args.seed, fam, n)
-        bargs = S.batch_args(p)
-        t_def = time_of_impact_batch(*bargs, (0.0, 1.0), DEFAULT)
-        tt = time.perf_counter()
-        truth = compute_truth(p, t_def, samples, fname)
-        st = truth["status"]
-        notes += truth["notes"]
-        notes.append(
-            f"{fname}: {n} pairs; truth hit {int(np.sum(st == 'hit'))}, miss {int(np.sum(st == 'miss'))}, "
-            f"excluded {int(np.sum(st == 'excluded'))}; {truth['mp_calls']} mp_gap calls "
-            f"({time.perf_counter() - tt:.1f} s)"
-        )
+    def record(self, solver, group, config, short, us, t, exc=0):
+        us, iqr = us
+        e = errors(t, self.truth)
+        self.rows.append(dict(family=self.fname, solver=solver, group=group, config=config, short=short,
+                              us_per_query=us, us_iqr_rel=iqr, errors=exc, **e))
+        if solver == "ours":
+            for kind, ids in (("late", e["late_idx"]), ("miss", e["miss_idx"]), ("false hit", e["false_idx"])):
+                for i in ids:
+                    self.incidents.append((self.fname, self.fam, int(i), config, kind, t[i], self.truth, self.p))
 
-        def record(solver, group, config, short, us, t, exc=0):
-            (us, iqr) = us
-            e = errors(t, truth)
-            rows.append(dict(family=fname, solver=solver, group=group, config=config, short=short,
-                             us_per_query=us, us_iqr_rel=iqr, errors=exc, **e))
-            if solver == "ours":
-                for kind, ids in (("late", e["late_idx"]), ("miss", e["miss_idx"]), ("false hit", e["false_idx"])):
-                    for i in ids:
-                        incidents.append((fname, fam, int(i), config, kind, t[i], truth, p))
 
-        # ---- ours: answers, then interleaved timing ----
-        answers = [time_of_impact_batch(*bargs, (0.0, 1.0), tol) for _, _, tol in configs]
-        objs = S.our_objects(p)
-        t_single = np.array([np.nan if c is None else c.t for c in (time_of_impact(*o) for o in objs)])
-        same = np.array_equal(np.isnan(t_single), np.isnan(t_def)) and np.array_equal(
-            t_single[~np.isnan(t_single)], t_def[~np.isnan(t_def)])
-        if not same:
-            notes.append(f"{fname}: !! single time_of_impact answers differ from the batch answers")
-        jobs = [batch_job(bargs, tol) for _, _, tol in configs] + [loop_job(time_of_impact, objs)]
-        us = round_robin(jobs, repeats, f"{fname}: timing ours")
-        for (group, label, _tol), t, u in zip(configs, answers, us):
-            short = label.replace("gap_rel=", "g=").replace("rounding=", "r=").replace("max_steps=", "s=")
-            record("ours", group, label, short, u, t)
-        record("ours", "single", "default, one time_of_impact call per pair (Python loop)", "single", us[-1],
+def truth_of(seed, fam, fname, n, samples):
+    """A family's pairs and their truth: a FamilyRun with no rows yet."""
+    p = S.make_pairs(seed, fam, n)
+    t_def = time_of_impact_batch(*S.batch_args(p), (0.0, 1.0), DEFAULT)
+    tt = time.perf_counter()
+    truth = compute_truth(p, t_def, samples, fname)
+    st = truth["status"]
+    run = FamilyRun(fam, fname, p, t_def, truth, notes=list(truth["notes"]))
+    run.notes.append(
+        f"{fname}: {n} pairs; truth hit {int(np.sum(st == 'hit'))}, miss {int(np.sum(st == 'miss'))}, "
+        f"excluded {int(np.sum(st == 'excluded'))}; {truth['mp_calls']} mp_gap calls "
+        f"({time.perf_counter() - tt:.1f} s)"
+    )
+    return run
+
+
+def measure_ours(run, configs, repeats):
+    """Our configurations' answers, then their interleaved timing, and single calls."""
+    bargs, t_def = S.batch_args(run.p), run.t_def
+    answers = [time_of_impact_batch(*bargs, (0.0, 1.0), tol) for _, _, tol in configs]
+    objs = S.our_objects(run.p)
+    t_single = np.array([np.nan if c is None else c.t for c in (time_of_impact(*o) for o in objs)])
+    same = np.array_equal(np.isnan(t_single), np.isnan(t_def)) and np.array_equal(
+        t_single[~np.isnan(t_single)], t_def[~np.isnan(t_def)])
+    if not same:
+        run.notes.append(f"{run.fname}: !! single time_of_impact answers differ from the batch answers")
+    jobs = [batch_job(bargs, tol) for _, _, tol in configs] + [loop_job(time_of_impact, objs)]
+    us = round_robin(jobs, repeats, f"{run.fname}: timing ours")
+    for (group, label, _tol), t, u in zip(configs, answers, us):
+        short = label.replace("gap_rel=", "g=").replace("rounding=", "r=").replace("max_steps=", "s=")
+        run.record("ours", group, label, short, u, t)
+    run.record("ours", "single", "default, one time_of_impact call per pair (Python loop)", "single", us[-1],
                t_single)
 
-        # ---- FCL ----
-        if fconfs:
-            base = {mo: S.fcl_setup(p, mo, "libccd") for mo in ("trans", "screw")}
-            f_items, f_ans = [], []
-            for mo, toc, iters, gjk in fconfs:
-                req = S.fcl_request(mo, toc, iters, gjk)
-                items = [it[:4] + (req,) for it in base[mo]]
-                t_f, err_f = S.fcl_answers(items)
-                t_f[err_f] = np.nan
-                f_items.append(items)
-                f_ans.append((t_f, err_f))
-            us = round_robin([loop_job(S.fcl_safe, it) for it in f_items], repeats, f"{fname}: timing fcl")
-            ref_ans, same_as = {}, {}
-            for (mo, toc, iters, gjk), (t_f, err_f), u in zip(fconfs, f_ans, us):
-                short = f"{toc:g}" + ("" if iters == 100 else f", it={iters}") + ("" if gjk == "libccd" else f", {gjk}")
-                name = f"CA CCDM_{mo.upper()} toc_err={toc:g} iters={iters} gjk={gjk}"
-                record("fcl", f"fcl {mo}", name, short, u, t_f, int(err_f.sum()))
-                zero = int(np.sum(t_f == 0.0))
-                if zero:
-                    notes.append(f"{fname}: fcl {name}: {zero} answers at t = 0 (no pair starts in contact)")
-                key = (mo, gjk)
-                if key not in ref_ans:
-                    ref_ans[key] = (toc, iters, t_f)
-                    e = rows[-1]
-                    if len(e["miss_idx"]) or len(e["false_idx"]) or len(e["late_idx"]):
-                        notes.append(f"{fname}: fcl {name}: misses at pairs {list(map(int, e['miss_idx']))[:12]}, "
-                                     f"false hits at {list(map(int, e['false_idx']))[:12]}, late (> 1e-12) at "
-                                     f"{list(map(int, e['late_idx']))[:12]} (first 12 of each)")
-                else:
-                    t0_, it0_, tr = ref_ans[key]
-                    same_f = np.array_equal(np.isnan(tr), np.isnan(t_f)) and np.array_equal(
-                        tr[~np.isnan(tr)], t_f[~np.isnan(t_f)])
-                    same_as.setdefault((mo, gjk, t0_, it0_), []).append((f"toc_err={toc:g} iters={iters}", same_f))
-            for (mo, gjk, t0_, it0_), lst in same_as.items():
-                ident = [c for c, ok in lst if ok]
-                diff = [c for c, ok in lst if not ok]
-                notes.append(f"{fname}: fcl CCDM_{mo.upper()} gjk={gjk}: answers bit-identical to toc_err={t0_:g} "
-                             f"iters={it0_} for {', '.join(ident) or 'none'}"
-                             + (f"; different for {', '.join(diff)}" if diff else ""))
 
-    # ---- table ----
+def measure_fcl(run, fconfs, repeats):
+    """FCL's configurations: answers, interleaved timing, and which give bit-identical answers."""
+    base = {mo: S.fcl_setup(run.p, mo, "libccd") for mo in ("trans", "screw")}
+    f_items, f_ans = [], []
+    for mo, toc, iters, gjk in fconfs:
+        req = S.fcl_request(mo, toc, iters, gjk)
+        items = [it[:4] + (req,) for it in base[mo]]
+        t_f, err_f = S.fcl_answers(items)
+        t_f[err_f] = np.nan
+        f_items.append(items)
+        f_ans.append((t_f, err_f))
+    us = round_robin([loop_job(S.fcl_safe, it) for it in f_items], repeats, f"{run.fname}: timing fcl")
+    ref_ans, same_as = {}, {}
+    for (mo, toc, iters, gjk), (t_f, err_f), u in zip(fconfs, f_ans, us):
+        short = f"{toc:g}" + ("" if iters == 100 else f", it={iters}") + ("" if gjk == "libccd" else f", {gjk}")
+        name = f"CA CCDM_{mo.upper()} toc_err={toc:g} iters={iters} gjk={gjk}"
+        run.record("fcl", f"fcl {mo}", name, short, u, t_f, int(err_f.sum()))
+        zero = int(np.sum(t_f == 0.0))
+        if zero:
+            run.notes.append(f"{run.fname}: fcl {name}: {zero} answers at t = 0 (no pair starts in contact)")
+        key = (mo, gjk)
+        if key not in ref_ans:
+            ref_ans[key] = (toc, iters, t_f)
+            e = run.rows[-1]
+            if len(e["miss_idx"]) or len(e["false_idx"]) or len(e["late_idx"]):
+                run.notes.append(f"{run.fname}: fcl {name}: misses at pairs {list(map(int, e['miss_idx']))[:12]}, "
+                                 f"false hits at {list(map(int, e['false_idx']))[:12]}, late (> 1e-12) at "
+                                 f"{list(map(int, e['late_idx']))[:12]} (first 12 of each)")
+        else:
+            t0_, it0_, tr = ref_ans[key]
+            same_f = np.array_equal(np.isnan(tr), np.isnan(t_f)) and np.array_equal(
+                tr[~np.isnan(tr)], t_f[~np.isnan(t_f)])
+            same_as.setdefault((mo, gjk, t0_, it0_), []).append((f"toc_err={toc:g} iters={iters}", same_f))
+    for (mo, gjk, t0_, it0_), lst in same_as.items():
+        ident = [c for c, ok in lst if ok]
+        diff = [c for c, ok in lst if not ok]
+        run.notes.append(f"{run.fname}: fcl CCDM_{mo.upper()} gjk={gjk}: answers bit-identical to toc_err={t0_:g} "
+                         f"iters={it0_} for {', '.join(ident) or 'none'}"
+                         + (f"; different for {', '.join(diff)}" if diff else ""))
+
+
+# --------------------------------------------------------------------------------------
+# reports
+# --------------------------------------------------------------------------------------
+def print_table(rows, notes):
     print()
     print("| " + " | ".join(h for _, h, _ in COLS) + " |")
     print("|" + "|".join("---" for _ in COLS) + "|")
@@ -538,13 +524,15 @@ def main(argv=None):
           "same end poses (CCDM_TRANS ignores the spin), so its errors there are not solver error alone.")
     noisy = [r for r in rows if r["us_iqr_rel"] > 0.2]
     if noisy:
-        notes.append(f"timing: {len(noisy)} configuration(s) with an interquartile range above 20% of the median "
-                     f"(machine busy?): " + "; ".join(f"{r['family']} {r['solver']} {r['config']} "
-                                                      f"({r['us_iqr_rel']:.0%})" for r in noisy[:8]))
+        notes = notes + [f"timing: {len(noisy)} configuration(s) with an interquartile range above 20% of the "
+                         f"median (machine busy?): " + "; ".join(f"{r['family']} {r['solver']} {r['config']} "
+                                                                 f"({r['us_iqr_rel']:.0%})" for r in noisy[:8])]
     for line in notes:
         print("  " + line)
 
-    # ---- Pareto position of the default ----
+
+def print_pareto(rows, fams):
+    """Where the default stands among the clean configurations, per family."""
     print()
     for strict in (False, True):
         crit = "no answer above t_true at all" if strict else "no answer later than t_true + 1e-12"
@@ -568,44 +556,97 @@ def main(argv=None):
                      if better else "not dominated within noise")
                   + f"; our batch configurations span {min(ours_t):.2f}..{max(ours_t):.2f} us/query")
 
-    # ---- incidents of our solver ----
+
+def _incident(kind, t, truth, p, i, config, tol_of):
+    tt = truth["t_hi"][i]
+    if kind == "false hit":
+        size = float(p["ha"][i].sum() + p["hb"][i].sum())  # Tolerances' size: world half edges
+        g = truth["mingap_rel"][i] * p["r"][i]
+        tol_g = tol_of[config].gap_rel * size if config in tol_of else math.nan
+        within = " -> within the touching tolerance (by design)" if g <= tol_g else ""
+        return (f"t={float(t)!r}; truth: never touches (dense SAT min gap {g:.3e}, gap_rel*size "
+                f"{tol_g:.3e}){within}")
+    if kind == "miss":
+        return f"no answer; t_true={float(tt)!r}"
+    return f"t={float(t)!r} t_true={float(tt)!r} t-t_true={(t - tt) - truth['t_lo'][i]:.3e}"
+
+
+def print_incidents(rows, incidents, fams, seed, n, tol_of):
+    """Our answers above t_true (below the threshold), then every late answer, miss and false hit."""
     print()
     for r in rows:
         if r["solver"] == "ours" and r["group"] != "single" and r["late_strict"]:
             print(f"ours {r['family']} {r['config']}: {r['late_strict']} of {r['n_hit']} answers later than t_true "
                   f"(below the 1e-12 'late' threshold: {r['late'] == 0}); the latest: pair {r['worst_pair']} "
-                  f"(make_pairs({args.seed}, {fams.index(r['family'])}, {n})), by {r['max_signed']:.3e}")
-    if incidents:
-        print(f"!! {len(incidents)} late answer(s) / miss(es) / false hit(s) of our solver (seed {args.seed}); "
-              f"reproduce with make_pairs({args.seed}, family_index, {n}) and the pair index:")
-        for fname, fam, i, config, kind, t, truth, p in incidents[:40]:
-            tt = truth["t_hi"][i]
-            if kind == "false hit":
-                size = float(p["ha"][i].sum() + p["hb"][i].sum())  # Tolerances' size: world half edges
-                g = truth["mingap_rel"][i] * p["r"][i]
-                tol_g = tol_of[config].gap_rel * size if config in tol_of else math.nan
-                within = " -> within the touching tolerance (by design)" if g <= tol_g else ""
-                what = (f"t={float(t)!r}; truth: never touches (dense SAT min gap {g:.3e}, gap_rel*size "
-                        f"{tol_g:.3e}){within}")
-            elif kind == "miss":
-                what = f"no answer; t_true={float(tt)!r}"
-            else:
-                what = f"t={float(t)!r} t_true={float(tt)!r} t-t_true={(t - tt) - truth['t_lo'][i]:.3e}"
-            print(f"  {kind}: family {fname} (index {fam}), pair {i}, config {config}: {what}")
-        if len(incidents) > 40:
-            print(f"  ... {len(incidents) - 40} more")
-    else:
+                  f"(make_pairs({seed}, {fams.index(r['family'])}, {n})), by {r['max_signed']:.3e}")
+    if not incidents:
         print("our solver: no late answer, miss or false hit in any configuration")
+        return
+    print(f"!! {len(incidents)} late answer(s) / miss(es) / false hit(s) of our solver (seed {seed}); "
+          f"reproduce with make_pairs({seed}, family_index, {n}) and the pair index:")
+    for fname, fam, i, config, kind, t, truth, p in incidents[:40]:
+        print(f"  {kind}: family {fname} (index {fam}), pair {i}, config {config}: "
+              f"{_incident(kind, t, truth, p, i, config, tol_of)}")
+    if len(incidents) > 40:
+        print(f"  ... {len(incidents) - 40} more")
 
-    # ---- CSV and plot ----
-    os.makedirs(os.path.dirname(os.path.abspath(args.csv)), exist_ok=True)
+
+def write_csv(path, rows, meta):
+    os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
     keys = ["family", "solver", "group", "config", "us_per_query", "us_iqr_rel", "err_median", "err_p99", "err_max",
             "max_signed", "late", "late_strict", "misses", "false_hits", "errors", "n_hit", "n_miss_true", "n_excluded"]
-    with open(args.csv, "w", newline="") as f:
+    with open(path, "w", newline="") as f:
         w = csv.writer(f)
-        w.writerow(keys + ["seed", "n", "repeats", "machine"])
+        w.writerow(keys + list(meta))
         for r in rows:
-            w.writerow([r[k] for k in keys] + [args.seed, n, repeats, " | ".join(info)])
+            w.writerow([r[k] for k in keys] + list(meta.values()))
+
+
+# --------------------------------------------------------------------------------------
+# main
+# --------------------------------------------------------------------------------------
+def parse_args(argv):
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--quick", action="store_true", help="a < 30 s version (fewer pairs and repeats)")
+    ap.add_argument("--seed", type=int, default=12345)
+    ap.add_argument("--n", type=int, default=None, help="pairs per family (about half hit)")
+    ap.add_argument("--repeats", type=int, default=None, help="timing repeats (median)")
+    ap.add_argument("--csv", default=os.path.join(HERE, "results", "solver_tradeoff.csv"))
+    ap.add_argument("--png", default=os.path.join(ROOT, "docs", "solver_tradeoff.png"))
+    args = ap.parse_args(argv)
+    args.n = args.n or (45 if args.quick else 400)
+    args.repeats = args.repeats or (5 if args.quick else 41)
+    args.samples = 600 if args.quick else 1000
+    return args
+
+
+def main(argv=None):
+    args = parse_args(argv)
+    t_start = time.perf_counter()
+    info = S.machine_info()
+    print("# bullet_boxccd solver trade-off: knobs vs contact-time error and time per query")
+    for line in info:
+        print(line)
+    print(f"seed {args.seed}, {args.n} pairs per family, timing: median of {args.repeats} repeats; "
+          f"late = t > t_true + {LATE:g}; FCL: conservative advancement, GJK libccd")
+
+    configs = our_configs()
+    fconfs = fcl_configs(args.quick) if fcl is not None else []
+    fams = list(S.FAMILIES)
+    runs = []
+    for fam, fname in enumerate(fams):
+        run = truth_of(args.seed, fam, fname, args.n, args.samples)
+        measure_ours(run, configs, args.repeats)
+        if fconfs:
+            measure_fcl(run, fconfs, args.repeats)
+        runs.append(run)
+    rows = [r for run in runs for r in run.rows]
+
+    print_table(rows, [line for run in runs for line in run.notes])
+    print_pareto(rows, fams)
+    print_incidents(rows, [x for run in runs for x in run.incidents], fams, args.seed, args.n,
+                    {label: tol for _, label, tol in configs})
+    write_csv(args.csv, rows, dict(seed=args.seed, n=args.n, repeats=args.repeats, machine=" | ".join(info)))
     plot(rows, fams, args.png)
     print(f"\nwrote {args.csv} and {args.png}")
     if S.machine_info()[2] != info[2]:

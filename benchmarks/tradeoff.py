@@ -3,15 +3,15 @@
 What it measures
 ----------------
 The scene and the shots are those of ``benchmarks/plugin.py`` (both import them from
-``bullet_boxccd.pybullet_ccd.scenes``): ``--boxes`` dynamic 0.1 m cubes (default 100: a settled pile of 96 plus 4
+``bullet_boxccd.pybullet_ccd.tradeoff.scenes``): ``--boxes`` dynamic 0.1 m cubes (default 100: a settled pile of 96 plus 4
 projectiles) over a static ground (top face z = 0) and a static 1 cm wall (plane
 x = 0); per seeded trial 2 projectiles are fired at the wall and 2 down at the
-ground at 50..150 m/s with a random spin (``plugin.shots(seed)``), and a window of
+ground at 50..150 m/s with a random spin (``scenes.shots(seed)``), and a window of
 ``--window`` steps of 1/240 s (default 120) is run. Every trial is a task
 of its own: the scene is built and settled in a new pybullet client, then that seed's
 shots are fired, so every configuration sees the same settled pile and the same shots;
 tasks run seeds outer, configurations inner (a burst of load from elsewhere hits all).
-The grid, the task and the outputs live in ``bullet_boxccd.validate.sweep``: this program
+The grid, the task and the outputs live in ``bullet_boxccd.pybullet_ccd.tradeoff.grid``: this program
 runs them in this process; ``boxccd sweep`` runs the same tasks on Ray (or in-process with
 ``--workers 0``) and writes the same CSV and plot from the same seeds (all but the
 timing columns are equal; ``tests/test_sweep.py`` checks it).
@@ -98,7 +98,7 @@ import sys
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from plugin import _code_version  # noqa: E402  (the commit measured)
 
-from bullet_boxccd.validate.sweep import summary_text, sweep, write_outputs  # noqa: E402
+from bullet_boxccd.pybullet_ccd.tradeoff.grid import summary_text, sweep, write_outputs  # noqa: E402
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.dirname(HERE)

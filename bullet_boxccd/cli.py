@@ -265,7 +265,7 @@ def run_validate(args) -> int:
 
 
 def run_sweep(args) -> int:
-    from .validate.sweep import summary_text, sweep, write_outputs
+    from .pybullet_ccd.tradeoff.grid import summary_text, sweep, write_outputs
 
     rows, tunnels, meta = sweep(args.boxes, args.seed, args.trials, args.window, args.quick, args.workers,
                                 args.address, args.report, show_progress=not args.no_progress)

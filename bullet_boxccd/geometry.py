@@ -18,7 +18,12 @@ import numpy as np
 from . import _core
 from ._arrays import as_float_array
 
-__all__ = ["Box", "feature_name"]
+__all__ = ["Box", "feature_name", "SIGNS"]
+
+# The corners of a box as sign triples (-1: lo, +1: hi), in the order of Box.vertices():
+# (-,-,-), (-,-,+), (-,+,-), ...
+SIGNS = np.array(list(product((-1, 1), repeat=3)), dtype=float)
+
 
 def feature_name(signs) -> str:
     """Seed name of the feature with this sign triple: (1, 0, -1) -> "X'Z"."""
@@ -70,7 +75,7 @@ class Box:
 
     def vertices(self) -> np.ndarray:
         """(8, 3) corners in the box frame, ordered by sign triples (-,-,-), (-,-,+), ..."""
-        return np.array([np.where(np.array(s) > 0, self.hi, self.lo) for s in product((-1, 1), repeat=3)])
+        return np.where(SIGNS > 0, self.hi, self.lo)
 
     def __reduce__(self):
         return type(self), (self.lo, self.hi)

@@ -19,19 +19,23 @@ from ._arrays import as_float_array
 __all__ = ["QuadraticMotion", "rotation_matrix", "rotations", "screw_coeffs", "through_coeffs"]
 
 
+def axis_angle_matrix(axis, angle) -> np.ndarray:
+    """(..., 3, 3) rotations by ``angle`` (...) about the unit ``axis`` (..., 3) (Rodrigues:
+    the one copy in the package; ``rotations`` and ``rotation_matrix`` go through it)."""
+    k = np.asarray(axis, dtype=float)
+    K = np.zeros(k.shape[:-1] + (3, 3))
+    K[..., 0, 1], K[..., 0, 2], K[..., 1, 2] = -k[..., 2], k[..., 1], -k[..., 0]
+    K = K - np.swapaxes(K, -1, -2)
+    s, c = np.sin(angle)[..., None, None], np.cos(angle)[..., None, None]
+    return np.eye(3) + s * K + (1.0 - c) * (K @ K)
+
+
 def rotations(rotvec) -> np.ndarray:
     """(..., 3, 3) rotations by the rotation vectors ``rotvec`` (..., 3): about
-    ``rotvec / |rotvec|`` by ``|rotvec|`` radians (Rodrigues; the identity for a
-    zero vector)."""
+    ``rotvec / |rotvec|`` by ``|rotvec|`` radians (the identity for a zero vector)."""
     rotvec = np.asarray(rotvec, dtype=float)
     theta = np.linalg.norm(rotvec, axis=-1)
-    k = rotvec / np.where(theta > 0, theta, 1.0)[..., None]
-    K = np.zeros(rotvec.shape[:-1] + (3, 3))
-    K[..., 0, 1], K[..., 0, 2] = -k[..., 2], k[..., 1]
-    K[..., 1, 0], K[..., 1, 2] = k[..., 2], -k[..., 0]
-    K[..., 2, 0], K[..., 2, 1] = -k[..., 1], k[..., 0]
-    s, c = np.sin(theta)[..., None, None], (1.0 - np.cos(theta))[..., None, None]
-    return np.eye(3) + s * K + c * (K @ K)
+    return axis_angle_matrix(rotvec / np.where(theta > 0, theta, 1.0)[..., None], theta)
 
 
 def rotation_matrix(axis, angle: float) -> np.ndarray:
@@ -233,10 +237,3 @@ def pose_matrix(position, quaternion) -> np.ndarray:
 def pose7(X) -> np.ndarray:
     """(7,) position and quaternion (x, y, z, w) of a (4, 4) rigid pose."""
     return np.concatenate([np.asarray(X)[:3, 3], matrix_to_quat(np.asarray(X)[:3, :3])])
-
-
-def axis_angle_matrix(axis, angle) -> np.ndarray:
-    """(3, 3) rotation by ``angle`` about the unit ``axis`` (Rodrigues)."""
-    x, y, z = np.asarray(axis, dtype=float)
-    K = np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
-    return np.eye(3) + np.sin(angle) * K + (1.0 - np.cos(angle)) * (K @ K)

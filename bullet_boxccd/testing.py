@@ -20,14 +20,14 @@ mpmath at 40 digits (mpmath, a test extra, is imported on first use).
 from __future__ import annotations
 
 from dataclasses import dataclass
-from itertools import product
 
 import numpy as np
 
-__all__ = ["SIGNS", "Case", "Reference", "box_size", "check_answer", "local_vertices", "motion_at", "mp_gap",
-           "reference", "sat_gap", "world_vertices"]
+from .geometry import SIGNS  # vertex order of Box.vertices()
 
-SIGNS = np.array(list(product((-1, 1), repeat=3)), dtype=float)  # vertex order of Box.vertices()
+__all__ = ["SIGNS", "Case", "Reference", "box_size", "check_answer", "local_vertices", "motion_at", "mp_bisect",
+           "mp_gap", "placed_vertices", "reference", "sat_gap", "world_vertices"]
+
 # Vertex pairs (by index in SIGNS) that span the three edge directions.
 _EDGE = ((0, 4), (0, 2), (0, 1))
 
@@ -45,10 +45,15 @@ def motion_at(coeffs, t):
     return coeffs[..., 0, :, :] + t * (coeffs[..., 1, :, :] + t * coeffs[..., 2, :, :])
 
 
-def world_vertices(coeffs, lo, hi, t):
-    M = motion_at(coeffs, t)
+def placed_vertices(M, lo, hi):
+    """(..., 8, 3) world corners of boxes (corners lo, hi (..., 3)) placed by affine
+    matrices M (..., 4, 4) (or their top rows, (..., 3, 4))."""
     v = local_vertices(lo, hi)
     return np.einsum("...ij,...vj->...vi", M[..., :3, :3], v) + M[..., None, :3, 3]
+
+
+def world_vertices(coeffs, lo, hi, t):
+    return placed_vertices(motion_at(coeffs, t), lo, hi)
 
 
 def _axes(VA, VB):
@@ -246,6 +251,23 @@ def mp_gap(case: Case, t):
             pb = [sum(ax[i] * v[i] for i in range(3)) / n for v in VB]
             best = max(best, min(pb) - max(pa), min(pa) - max(pb))
         return best
+
+
+def mp_bisect(case: Case, lo, hi, tol, max_steps=None):
+    """Bisect the sign change of ``mp_gap`` in [lo, hi] (the caller has checked gap(lo) > 0
+    >= gap(hi)) until ``hi - lo <= tol`` or after ``max_steps`` halvings (None: no limit).
+    The midpoints are taken in the arithmetic of lo and hi: floats give float midpoints,
+    mpmath numbers midpoints at the working precision (``mp.workdps``). Returns the final
+    (lo, hi) and the number of ``mp_gap`` calls."""
+    n = 0
+    while hi - lo > tol and (max_steps is None or n < max_steps):
+        mid = (lo + hi) / 2
+        if mp_gap(case, mid) > 0:
+            lo = mid
+        else:
+            hi = mid
+        n += 1
+    return lo, hi, n
 
 
 # ------------------------------------------------------------- judging answers

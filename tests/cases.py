@@ -4,10 +4,10 @@ and a check of two pairs whose answers are known in closed form."""
 from __future__ import annotations
 
 import numpy as np
-from oracle import Case
 
 from bullet_boxccd import QuadraticMotion
 from bullet_boxccd.motion import rotation_matrix
+from bullet_boxccd.testing import Case
 
 FAMILIES = ("ballistic", "rotating", "one_static", "both_moving", "off_centre", "thin_plates")
 
@@ -17,11 +17,17 @@ def _unit(rng):
     return v / np.linalg.norm(v)
 
 
-def _pose(rng, position):
+def pose(R=None, p=(0.0, 0.0, 0.0)):
+    """(4, 4) pose of a rotation R (3, 3) (None: the identity) and a position p."""
     T = np.eye(4)
-    T[:3, :3] = rotation_matrix(_unit(rng), rng.uniform(0, np.pi))
-    T[:3, 3] = position
+    if R is not None:
+        T[:3, :3] = R
+    T[:3, 3] = p
     return T
+
+
+def _pose(rng, position):
+    return pose(rotation_matrix(_unit(rng), rng.uniform(0, np.pi)), position)
 
 
 def _box(rng, scale, family):

@@ -1,4 +1,4 @@
-"""Test configuration: the oracle and case modules beside the tests, the
+"""Test configuration: the case modules beside the tests, the
 deterministic hypothesis profile, and --broken-solver, which swaps the core's
 contact queries for a broken stub to check that the tests can fail:
 
@@ -15,7 +15,7 @@ import sys
 
 import numpy as np
 
-# The oracle and the case generator are plain modules beside the tests; the
+# The case generators (cases.py, stress.py) are plain modules beside the tests; the
 # package under test is the installed one (pytest runs with --import-mode=importlib).
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 

@@ -23,11 +23,11 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-from cases import make_case
-from oracle import Case, mp_gap, reference
+from cases import make_case, pose
 
 from bullet_boxccd import Box, QuadraticMotion, time_of_impact
 from bullet_boxccd.motion import rotation_matrix
+from bullet_boxccd.testing import Case, mp_bisect, mp_gap, reference
 
 LATE = 1e-12  # of the range: later than the truth by more than this is "late"
 
@@ -37,29 +37,15 @@ def solve(case):
                           QuadraticMotion(case.coeffs_b), (case.t0, case.t1))
 
 
-def pose(R=None, p=(0.0, 0.0, 0.0)):
-    T = np.eye(4)
-    if R is not None:
-        T[:3, :3] = R
-    T[:3, 3] = p
-    return T
-
-
 def moving(lo, hi, motion_a, lo_b, hi_b, motion_b, t0=0.0, t1=1.0):
     return Case(np.asarray(lo, float), np.asarray(hi, float), motion_a.coeffs.copy(), np.asarray(lo_b, float),
                 np.asarray(hi_b, float), motion_b.coeffs.copy(), t0, t1)
 
 
 def mp_crossing(case, lo, hi):
-    """The mpmath gap's crossing, bisected to 1e-14 of the range in [lo, hi] (gap(lo) > 0 >= gap(hi))."""
-    span = case.t1 - case.t0
-    while hi - lo > 1e-14 * span:
-        mid = 0.5 * (lo + hi)
-        if mp_gap(case, mid) > 0:
-            lo = mid
-        else:
-            hi = mid
-    return hi
+    """The mpmath gap's crossing, bisected (in floats) to 1e-14 of the range in [lo, hi]
+    (gap(lo) > 0 >= gap(hi)): the first float time of the final bracket's gap <= 0."""
+    return mp_bisect(case, lo, hi, 1e-14 * (case.t1 - case.t0))[1]
 
 
 def true_contact(case, ref=None):

@@ -7,11 +7,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from cases import make_case
-from oracle import SIGNS, motion_at, world_vertices
 from scipy.spatial import ConvexHull
 
 from bullet_boxccd import Box, QuadraticMotion, bms_planes, sections
 from bullet_boxccd.geometry import feature_name
+from bullet_boxccd.testing import SIGNS, motion_at, world_vertices
 
 
 def hull_facets(VA, VB, L):

@@ -15,11 +15,11 @@ from __future__ import annotations
 import numpy as np
 import pybullet as p
 import pytest
-from oracle import SIGNS, sat_gap
 from scipy.spatial.transform import Rotation
 
 from bullet_boxccd import _core
 from bullet_boxccd.pybullet_ccd.chain import read_base_state, read_chain, read_joint_state
+from bullet_boxccd.testing import SIGNS, sat_gap
 
 DT = 1.0 / 240.0
 FIT_TOLERANCE = 0.05
@@ -28,6 +28,8 @@ QDOT_SIZE = {0: 1, 1: 1, 2: 3, 4: 0}
 URDFS = ["r2d2.urdf", "cartpole.urdf", "kuka_iiwa/model.urdf", "humanoid/humanoid.urdf"]
 
 
+# Rotations through scipy on purpose: an independent reference for the core's frames (not
+# bullet_boxccd.motion's quaternion helpers, which the plugin uses).
 def random_quat(rng, n=None):
     return Rotation.random(n, random_state=rng).as_quat()
 

@@ -165,13 +165,14 @@ def test_bad_case_file_from_the_console_command(tmp_path):
 @pytest.fixture
 def no_work(monkeypatch, tmp_path):
     """Fail if validate or sweep starts; run in an empty directory."""
-    from bullet_boxccd.validate import shards, sweep
+    from bullet_boxccd.pybullet_ccd.tradeoff import grid
+    from bullet_boxccd.validate import shards
 
     def started(*args, **kwargs):
         raise AssertionError("the command started its work")
 
     monkeypatch.setattr(shards, "validate", started)
-    monkeypatch.setattr(sweep, "sweep", started)
+    monkeypatch.setattr(grid, "sweep", started)
     monkeypatch.chdir(tmp_path)
     return tmp_path
 

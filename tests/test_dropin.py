@@ -127,7 +127,7 @@ def test_probes_read_a_maximal_body_made_unseen_exactly(cid):
         maximal = raw_create(useMaximalCoordinates=True, **kw)
         twin = p.createMultiBody(**kw)
 
-        def corners(b, h, X_CS):
+        def corners(b, h, X_CS):  # poses through pybullet's own quaternion matrix: the independent reference
             pos, q = p.getBasePositionAndOrientation(b, physicsClientId=cid)
             X = np.eye(4)
             X[:3, :3] = np.array(p.getMatrixFromQuaternion(q)).reshape(3, 3)

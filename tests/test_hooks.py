@@ -410,7 +410,7 @@ for arg in sys.argv[1:]:
                 continue
             data = p.getCollisionShapeData(b, i - 1, physicsClientId=cid)
             theirs = [(0.5 * np.array(d[3]), np.array(d[5]), np.array(p.getMatrixFromQuaternion(d[6])).reshape(3, 3))
-                      for d in data if d[2] == p.GEOM_BOX]
+                      for d in data if d[2] == p.GEOM_BOX]  # pybullet's own frames: the reference, on purpose
             err = 0.0
             if len(theirs) == len(lk.boxes):
                 for (h, X), (h2, t2, R2) in zip(lk.boxes, theirs):

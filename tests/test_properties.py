@@ -6,13 +6,13 @@ or a real miss), so a solver that is consistently wrong fails here too."""
 from __future__ import annotations
 
 import numpy as np
-from cases import FAMILIES, make_case
+from cases import FAMILIES, make_case, pose
 from hypothesis import given
 from hypothesis import strategies as st
-from oracle import check_answer, mp_gap
 
 from bullet_boxccd import Box, QuadraticMotion, time_of_impact
 from bullet_boxccd.motion import rotation_matrix
+from bullet_boxccd.testing import check_answer, mp_gap
 
 cases = st.builds(make_case, st.integers(0, 10**6), st.sampled_from(FAMILIES))
 
@@ -40,9 +40,7 @@ def same_answer(case, c1, c2, t_map=lambda t: t):
 
 @given(cases, st.floats(-np.pi, np.pi), st.tuples(*[st.floats(-1e3, 1e3)] * 3))
 def test_invariant_under_a_shared_rigid_transform(case, angle, shift):
-    T = np.eye(4)
-    T[:3, :3] = rotation_matrix((0.3, -0.5, 0.8), angle)
-    T[:3, 3] = np.array(shift) * case.size()
+    T = pose(rotation_matrix((0.3, -0.5, 0.8), angle), np.array(shift) * case.size())
     c1 = solve(case)
     check_answer(case, c1)
     c2 = solve(case, QuadraticMotion(case.coeffs_a).transformed(T), QuadraticMotion(case.coeffs_b).transformed(T))

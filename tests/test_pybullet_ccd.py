@@ -99,7 +99,8 @@ def thin_wall_run(cid, use, speed, thickness, phase, spin, orn, cube_kw=None, re
     kw = cube_kw or {}  # the box centre in the centre-of-mass frame:
     offset = np.subtract(kw.get("frame_pos", (0, 0, 0)), kw.get("inertial_pos", (0, 0, 0)))
 
-    def centre():  # of the box, not of the centre-of-mass frame (they differ with frame offsets)
+    def centre():  # of the box, not of the centre-of-mass frame (they differ with frame offsets); pybullet's
+        # own quaternion matrix on purpose: the test judges the plugin against pybullet
         pos, q = p.getBasePositionAndOrientation(cube, physicsClientId=cid)
         return np.array(pos) + np.array(p.getMatrixFromQuaternion(q)).reshape(3, 3) @ offset
 

@@ -10,7 +10,7 @@ from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 import pytest
-from cases import FAMILIES, assert_known_answers, batch_rows, make_case
+from cases import FAMILIES, assert_known_answers, batch_rows, make_case, pose
 
 from bullet_boxccd import (
     Box,
@@ -35,13 +35,6 @@ from bullet_boxccd.motion import rotation_matrix
 
 CUBE = Box.centered((0.5, 0.5, 0.5))
 STATIC = QuadraticMotion.static()
-
-
-def posed(R, p):
-    T = np.eye(4)
-    T[:3, :3] = R
-    T[:3, 3] = p
-    return T
 
 
 def ballistic(R, p, v):
@@ -78,7 +71,7 @@ def test_edge_to_edge():
     # A turned 45 deg about z presents a vertical edge at x = sqrt(2)/2; B turned
     # 45 deg about y presents a horizontal edge (along y) at x0 - sqrt(2)/2.
     r = np.sqrt(0.5)
-    m_a = QuadraticMotion.static(posed(rotation_matrix((0, 0, 1), np.pi / 4), (0, 0, 0)))
+    m_a = QuadraticMotion.static(pose(rotation_matrix((0, 0, 1), np.pi / 4), (0, 0, 0)))
     m_b = ballistic(rotation_matrix((0, 1, 0), np.pi / 4), (3, 0, 0), (-2, 0, 0))
     c = time_of_impact(CUBE, m_a, CUBE, m_b)
     assert abs(c.t - (3 - 2 * r) / 2) < 1e-11
@@ -100,7 +93,7 @@ def test_vertex_to_face():
 
 def test_face_of_b_against_vertex_of_a():
     R = rotation_matrix(np.cross((1, 1, 1), (1, 0, 0)), np.arccos(1 / np.sqrt(3)))
-    c = time_of_impact(CUBE, QuadraticMotion.static(posed(R, (0, 0, 0))), CUBE,
+    c = time_of_impact(CUBE, QuadraticMotion.static(pose(R, (0, 0, 0))), CUBE,
                        QuadraticMotion.ballistic((3, 0, 0), (-4, 0, 0)))
     assert abs(c.t - (3 - np.sqrt(3) / 2 - 0.5) / 4) < 1e-11
     assert c.feature == ("VO", "X'Y'Z'", "X")
@@ -164,7 +157,7 @@ def test_rotating_plank_sweeps_the_cube():
     # contact when the plank's far edge rotates into the cube's near face.
     plank = Box.centered((5.0, 0.1, 0.5))
     m = QuadraticMotion.screw(np.eye(4), (0, 0, 0), (0, 0, np.pi / 2))
-    c = time_of_impact(plank, m, CUBE, QuadraticMotion.static(posed(np.eye(3), (0.0, 3.0, 0.0))))
+    c = time_of_impact(plank, m, CUBE, QuadraticMotion.static(pose(np.eye(3), (0.0, 3.0, 0.0))))
     assert c is not None and 0 < c.t < 1
 
 

@@ -1,17 +1,16 @@
-"""The solver against the independent oracle (bullet_boxccd.testing, re-exported by
-tests/oracle.py) on seeded random pairs: per family, 200 pairs (1200 in all),
-each judged by ``check_answer`` (clear hits agree to 1e-9 of the range and mpmath
-brackets them, clear misses are None, shallow hits are within 1e-9 box sizes of
-touching and never late)."""
+"""The solver against the independent oracle (bullet_boxccd.testing) on seeded random
+pairs: per family, 200 pairs (1200 in all), each judged by ``check_answer`` (clear hits
+agree to 1e-9 of the range and mpmath brackets them, clear misses are None, shallow hits
+are within 1e-9 box sizes of touching and never late)."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 from cases import FAMILIES, make_case
-from oracle import check_answer
 
 from bullet_boxccd import Box, QuadraticMotion, time_of_impact
+from bullet_boxccd.testing import check_answer
 
 N_PER_FAMILY = 200
 
@@ -45,7 +44,7 @@ def test_contact_point_and_normal_are_consistent_with_the_oracle():
         if got is None or got.initial:
             continue
         L = case.size()
-        from oracle import world_vertices
+        from bullet_boxccd.testing import world_vertices
         for coeffs, lo, hi in ((case.coeffs_a, case.lo_a, case.hi_a), (case.coeffs_b, case.lo_b, case.hi_b)):
             M = coeffs[0] + got.t * (coeffs[1] + got.t * coeffs[2])
             p_local = np.linalg.solve(M[:3, :3], got.point - M[:3, 3])

@@ -7,10 +7,10 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from oracle import SIGNS, sat_gap
 from scipy.spatial.transform import Rotation
 
 from bullet_boxccd import Outcome, _core
+from bullet_boxccd.testing import SIGNS, sat_gap
 
 DT = 1.0 / 240.0
 FIT_TOLERANCE = 0.05

@@ -15,7 +15,7 @@ import pytest
 import ray_local
 
 from bullet_boxccd import cli
-from bullet_boxccd.validate import sweep as SW
+from bullet_boxccd.pybullet_ccd.tradeoff import grid as SW
 
 local_ray = ray_local.local_ray  # the module's local Ray (a fixture)
 

@@ -3,7 +3,7 @@
 The checker (bullet_boxccd/validate/checker.py) is judged two ways: it must catch
 failures injected into the solver's answers (dropped hits, answers moved later, hits
 reported on pairs that never touch), and its certified verdicts must agree with the
-independent mpmath oracle of tests/oracle.py. The Ray tests start a local Ray with 2
+independent mpmath oracle of bullet_boxccd/testing.py. The Ray tests start a local Ray with 2
 CPUs for this module and shut it down at the end (no process left behind).
 """
 
@@ -18,9 +18,9 @@ import sys
 import numpy as np
 import pytest
 import ray_local
-from oracle import Case, mp_gap, reference
 
 from bullet_boxccd import cli, time_of_impact_batch
+from bullet_boxccd.testing import Case, mp_gap, reference
 from bullet_boxccd.validate import checker as C
 from bullet_boxccd.validate import shards
 from bullet_boxccd.validate.casefile import read_case
@@ -77,7 +77,7 @@ def test_injected_misses_late_answers_and_ghosts_are_caught(name):
 
 
 def test_injected_faults_agree_with_the_independent_oracle():
-    """Certified misses overlap at their evidence time by tests/oracle.py's 40-digit gap;
+    """Certified misses overlap at their evidence time by bullet_boxccd.testing's 40-digit gap;
     certified ghosts are apart there at the reported time."""
     b, ts = solved("one_static", n=60)
     c = C.check(b, ts)

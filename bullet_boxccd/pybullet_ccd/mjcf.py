@@ -104,7 +104,9 @@ def _int(text) -> int:
 
 
 def _rotation(x, y, z, w) -> np.ndarray:
-    """btMatrix3x3::setRotation: the rotation of a quaternion, of any length."""
+    """btMatrix3x3::setRotation: the rotation of a quaternion, of any length. Bullet's own
+    arithmetic, as the importer computes the frames (motion.quat_to_matrix rounds otherwise),
+    so it stays apart from that helper."""
     d = x * x + y * y + z * z + w * w
     s = 2.0 / d
     xs, ys, zs = x * s, y * s, z * s

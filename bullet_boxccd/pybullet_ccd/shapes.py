@@ -34,7 +34,7 @@ from itertools import combinations, product
 import numpy as np
 import pybullet
 
-from ..motion import quat_to_matrix
+from ..motion import pose_matrix
 from ._hooks import raw
 
 __all__ = ["multibody_boxes", "probe_boxes", "fit_rounded_box", "Shadow", "NOT_A_BOX", "SPHERE", "THIN"]
@@ -46,20 +46,13 @@ _FAR = 64.0  # probe distance, in sizes of the body's bounding box: far enough t
 _REL = 1e-9  # relative tolerance of the fit's checks
 
 
-def _pose_matrix(position, quaternion) -> np.ndarray:
-    X = np.eye(4)
-    X[:3, :3] = quat_to_matrix(quaternion)
-    X[:3, 3] = position
-    return X
-
-
 def multibody_boxes(cid, body, link):
     """(boxes, others) of a multibody link: boxes [(half extents (3,), X_CS (4, 4))] in the
     link's centre-of-mass frame, and the geometry types of its other shapes."""
     boxes, others = [], []
     for d in raw.getCollisionShapeData(body, link, physicsClientId=cid):
         if d[2] == pybullet.GEOM_BOX:
-            boxes.append((0.5 * np.asarray(d[3], float), _pose_matrix(d[5], d[6])))
+            boxes.append((0.5 * np.asarray(d[3], float), pose_matrix(d[5], d[6])))
         else:
             others.append(d[2])
     return boxes, others

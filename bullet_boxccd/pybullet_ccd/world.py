@@ -35,14 +35,14 @@ from dataclasses import dataclass, field
 import numpy as np
 import pybullet
 
-from ..motion import quat_to_matrix
+from ..motion import pose_matrix, quat_to_matrix
 from . import mjcf
 from ._hooks import journal, new_serial, raw
 from .events import BoxCCDWarning
 from .filters import Filters, default_group_mask
 from .shapes import SPHERE, Shadow, multibody_boxes, probe_boxes
 
-__all__ = ["STATIC", "FREE", "LINK", "World", "Tables"]
+__all__ = ["STATIC", "FREE", "LINK", "World", "Tables", "pose_matrix"]
 
 STATIC, FREE, LINK = 0, 1, 2
 _GEOMETRY = {pybullet.GEOM_SPHERE: "sphere", pybullet.GEOM_CAPSULE: "capsule", pybullet.GEOM_CYLINDER: "cylinder",
@@ -374,13 +374,6 @@ def _untracked(rec) -> str:
                 + ", ".join(f"{lk} ({n})" for lk, n in known))
     n = rec.untracked[0][1]
     return "its boxes" if n is None else f"its boxes (its file has {n})"
-
-
-def pose_matrix(position, quaternion) -> np.ndarray:
-    X = np.eye(4)
-    X[:3, :3] = quat_to_matrix(quaternion)
-    X[:3, 3] = position
-    return X
 
 
 _PACKAGE = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))

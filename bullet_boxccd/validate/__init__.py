@@ -1,4 +1,4 @@
-"""Validation and trade-off sweeps at scale (``boxccd validate``, ``boxccd sweep``).
+"""Validation of the solver at scale (``boxccd validate``).
 
 * ``families``: seeded query families (the stress families, vectorised).
 * ``checker``: an independent checker of the solver's answers (separating axes, exact
@@ -8,7 +8,8 @@
   and the ``validate`` driver.
 * ``report``: the JSON-lines report a run appends to and resumes from.
 * ``runner``: runs tasks in-process (``workers=0``) or on Ray (``bullet_boxccd._ray``).
-* ``sweep``: the plugin's trade-off grid (``benchmarks/tradeoff.py``), one (configuration,
-  scene, seed) per task, each in its own pybullet client (the scene and the trial are
-  the adapter's: ``pybullet_ccd.scenes``; nothing here imports pybullet).
+* ``tables``: markdown tables for the command line.
+
+``report``, ``runner`` and ``tables`` also serve ``boxccd sweep``, the plugin's trade-off
+grid (``bullet_boxccd.pybullet_ccd.tradeoff``). Nothing here imports pybullet.
 """

@@ -81,7 +81,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .families import SIGNS, QueryBatch
+from ..geometry import SIGNS
+from .families import QueryBatch
 
 __all__ = ["CheckTolerances", "Checked", "check", "VERDICTS", "CLEAR_MISS", "MISS", "HIT", "LATE", "FALSE_HIT",
            "UNRESOLVED"]

@@ -35,6 +35,9 @@ from typing import NamedTuple
 
 import numpy as np
 
+from ..geometry import SIGNS
+from ..motion import axis_angle_matrix
+
 __all__ = ["FAMILIES", "QueryBatch", "make_batch"]
 
 
@@ -62,30 +65,20 @@ class QueryBatch(NamedTuple):
                              param=self.param[idx])
 
 
-# Box corners as sign triples, in the order of Box.vertices(): (-,-,-), (-,-,+), ...
-SIGNS = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)], float)
-
-
 # ---------------------------------------------------------------- vectorised motions
 def unit(rng, n) -> np.ndarray:
     v = rng.normal(size=(n, 3))
     return v / np.linalg.norm(v, axis=1, keepdims=True)
 
 
-def rotations(axis, angle) -> np.ndarray:
-    """(n, 3, 3) rotations by ``angle`` (n,) about unit ``axis`` (n, 3) (Rodrigues)."""
-    k = np.asarray(axis, float)
-    K = np.zeros(k.shape[:-1] + (3, 3))
-    K[..., 0, 1], K[..., 0, 2], K[..., 1, 2] = -k[..., 2], k[..., 1], -k[..., 0]
-    K = K - np.swapaxes(K, -1, -2)
-    s, c = np.sin(angle)[..., None, None], np.cos(angle)[..., None, None]
-    return np.eye(3) + s * K + (1.0 - c) * (K @ K)
-
-
 def random_rotations(rng, n) -> np.ndarray:
-    return rotations(unit(rng, n), rng.uniform(0.0, np.pi, n))
+    return axis_angle_matrix(unit(rng, n), rng.uniform(0.0, np.pi, n))
 
 
+# ``_through`` and ``screw`` fit the same motions as motion.through_coeffs and
+# motion.screw_coeffs, rounded otherwise (an inverse Vandermonde matrix; the translation
+# fitted too): a seed's queries are fixed to the bit (shards resume from reports, committed
+# case files name their shard and index), so they stay until the report format changes.
 def _through(times, poses) -> np.ndarray:
     """(n, 3, 4, 4) quadratic through three (n, 4, 4) poses at three shared times."""
     V = np.vander(np.asarray(times, float), 3, increasing=True)
@@ -105,7 +98,7 @@ def screw(R0, p0, v, w, t_range=(0.0, 1.0)) -> np.ndarray:
     poses = []
     for t in times:
         T = np.zeros((len(p0), 4, 4))
-        T[:, :3, :3] = rotations(axis, speed * (t - t0)) @ R0
+        T[:, :3, :3] = axis_angle_matrix(axis, speed * (t - t0)) @ R0
         T[:, :3, 3] = p0 + v * (t - t0)
         T[:, 3, 3] = 1.0
         poses.append(T)
@@ -250,12 +243,12 @@ def fam_near_parallel(rng, n):
     tilt = np.where(rng.random(n) < 0.2, 0.0, 10.0 ** rng.uniform(-16, -2, n))
     edges = rng.random(n) < 0.5
     h = rng.uniform(0.4, 0.6, (n, 3))
-    Rz = rotations(np.tile([0.0, 0.0, 1.0], (n, 1)), np.full(n, np.pi / 4))
+    Rz = axis_angle_matrix(np.tile([0.0, 0.0, 1.0], (n, 1)), np.full(n, np.pi / 4))
     horizontal = unit(rng, n) * (1.0, 1.0, 0.0)
     horizontal /= np.linalg.norm(horizontal, axis=1, keepdims=True)
     axis = np.where(edges[:, None], horizontal, unit(rng, n))
     Ra = np.where(edges[:, None, None], Rz, np.eye(3))
-    Rb = rotations(axis, tilt) @ Ra
+    Rb = axis_angle_matrix(axis, tilt) @ Ra
     lateral = np.where(edges, rng.uniform(-1e-3, 1e-3, n), rng.uniform(-0.5, 0.5, n))
     start = np.stack([np.full(n, 3.0), lateral, rng.uniform(-0.5, 0.5, n)], axis=1)
     cb = ballistic(Rb, start, np.tile([-4.0, 0.0, 0.0], (n, 1)))

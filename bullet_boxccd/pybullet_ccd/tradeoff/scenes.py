@@ -5,9 +5,9 @@ trial is the same wherever it runs; ``run_trial`` runs one). All dynamic boxes a
 ground is a static box 2 cm thick with its top face at z = 0 (body 0), the wall a static
 box 1 cm thick in the plane x = 0, y in [-1, 1], z in [0, 1.5] (body 1). The pile (N - 4
 boxes in up to 5 layers) is settled by 200 plain steps and stands away from the shots;
-the 4 projectiles are parked far away and placed by ``shots(seed)`` at each trial. Like
-the adapter, this module imports pybullet (it builds pybullet worlds); nothing in the
-solver or in ``validate`` imports it.
+the 4 projectiles are parked far away and placed by ``shots(seed)`` at each trial. This
+module imports pybullet (it builds pybullet worlds); nothing in the solver or in
+``validate`` imports it.
 """
 
 from __future__ import annotations
@@ -121,8 +121,14 @@ def min_dist(cid, a, b, dist, la=-1, lb=-1):
     return min((c[8] for c in pts), default=None)
 
 
-def run_trial(world, cfg, seed, window, ccd):
-    """One trial of one configuration on a built world (cid, state, projectiles, pile)."""
+def run_trial(world, cfg, seed, window, ccd, checks=True):
+    """One trial of one configuration on a built world (cid, state, projectiles, pile).
+
+    ``cfg`` is (name, kind, arg): kind "plain" with arg substeps, "ccd"/"ref" (stepped by
+    ``ccd``), "maximal" or "native" (native CCD set on the projectiles). Returns the mean
+    us per step, the tunneled projectiles [(index, aimed at, final centre)] and, with
+    ``checks``, the untimed checks (``first``, ``pose``, ``deepest``: see
+    ``tradeoff.grid``); without them (``benchmarks/plugin.py``) those stay empty."""
     name, kind, arg = cfg
     cid, state, proj, _ = world
     p.restoreState(state, physicsClientId=cid)
@@ -149,7 +155,7 @@ def run_trial(world, cfg, seed, window, ccd):
         events = step()
         total += time.perf_counter() - t0
         # untimed from here
-        for ev in events:
+        for ev in events if checks else ():
             if ev.initial:
                 continue
             pair = {ev.body_a, ev.body_b}
@@ -166,7 +172,7 @@ def run_trial(world, cfg, seed, window, ccd):
             c = centre(cid, b)
             through_wall[i] |= crosses_wall(prev[i], c)
             prev[i] = c
-            for st in (GROUND, WALL):
+            for st in (GROUND, WALL) if checks else ():
                 d = min_dist(cid, b, st, 0.0)
                 if d is not None:
                     deepest = min(deepest, d)

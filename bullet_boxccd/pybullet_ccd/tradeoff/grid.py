@@ -3,7 +3,7 @@
 Shared by ``benchmarks/tradeoff.py`` (in this process) and ``boxccd sweep`` (on Ray, or in
 this process with ``--workers 0``); both write the same CSV and Pareto plot from the same
 seeds. A task is one (configuration, scene, seed): it builds the scene of
-``pybullet_ccd.scenes`` (``boxes`` dynamic cubes) in a new DIRECT client, fires that seed's
+``tradeoff.scenes`` (``boxes`` dynamic cubes) in a new DIRECT client, fires that seed's
 shots, runs ``window`` steps of 1/240 s and returns what ``benchmarks/tradeoff.py``
 documents (its module docstring defines every metric):
 
@@ -33,9 +33,9 @@ import time
 
 import numpy as np
 
-from .report import Report
-from .runner import progress, run_jobs
-from .tables import markdown
+from ...validate.report import Report
+from ...validate.runner import progress, run_jobs
+from ...validate.tables import markdown
 
 __all__ = ["DEFAULT", "configs", "task", "sweep", "aggregate", "write_outputs", "summary_text"]
 
@@ -72,8 +72,8 @@ def configs(quick):
 # ---------------------------------------------------------------- one task
 def task(cfg, boxes, seed, window):
     """One (configuration, scene, seed) in its own pybullet client; a JSON-able result."""
-    from ..pybullet_ccd import BoxCCD
-    from ..pybullet_ccd import scenes as S
+    from .. import BoxCCD
+    from . import scenes as S
 
     world = S.build(boxes, WORLD[cfg[1]] != "multibody")
     try:
@@ -130,7 +130,7 @@ def sweep(boxes=(100,), seed=2024, trials=None, window=None, quick=False, worker
 
 def aggregate(cfgs, res, boxes, trials, window):
     """The CSV rows of one scene from {config name: [(seed, task result)]}, and its tunnel log."""
-    from ..pybullet_ccd import scenes as S
+    from . import scenes as S
 
     ref_name = next(c[0] for c in cfgs if c[1] == "ref")
     ref_first = {(seed, int(i)): t for seed, r in res[ref_name] for i, t in r["first"].items()}
@@ -174,7 +174,7 @@ def _f(x, fmt):
 
 def summary_text(rows, tunnels, meta) -> str:
     """The markdown tables and notes printed by both entry points."""
-    from ..pybullet_ccd import scenes as S
+    from . import scenes as S
 
     out = []
     for n in meta["boxes"]:
@@ -207,15 +207,21 @@ def summary_text(rows, tunnels, meta) -> str:
     return "\n".join(out)
 
 
-def write_outputs(rows, csv_path, png_path, boxes):
-    """The CSV (every scene) and one Pareto plot per scene (``png_path``, or with ``_<boxes>``
-    before the suffix when there are several scenes). Returns the paths written."""
-    os.makedirs(os.path.dirname(os.path.abspath(csv_path)), exist_ok=True)
+def write_csv(rows, path):
+    """Rows (dicts) as a CSV file, the columns in the order they first appear (also
+    ``benchmarks/plugin.py``'s)."""
+    os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
     keys = list(dict.fromkeys(k for r in rows for k in r))
-    with open(csv_path, "w", newline="") as fh:
+    with open(path, "w", newline="") as fh:
         wr = csv.DictWriter(fh, fieldnames=keys)
         wr.writeheader()
         wr.writerows(rows)
+
+
+def write_outputs(rows, csv_path, png_path, boxes):
+    """The CSV (every scene) and one Pareto plot per scene (``png_path``, or with ``_<boxes>``
+    before the suffix when there are several scenes). Returns the paths written."""
+    write_csv(rows, csv_path)
     written = [csv_path]
     for n in boxes:
         root, ext = os.path.splitext(png_path)
