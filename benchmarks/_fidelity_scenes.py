@@ -277,7 +277,7 @@ def planks_build(w, rng, variant):
             tiles.add(w.box((TILE / 2, TILE / 2, 0.01), ((i + 0.5 - N_TILES / 2) * TILE,
                                                         (j + 0.5 - N_TILES / 2) * TILE, -0.01)))
     planks = []
-    for k in range(6):
+    for _ in range(6):
         length = rng.uniform(0.4, 1.5)
         pos = (rng.uniform(-1.2, 1.2), rng.uniform(-1.2, 1.2), rng.uniform(2.0, 10.0))
         planks.append(w.box((length / 2, 0.025, 0.025), pos, length, quat(rng)))
@@ -352,15 +352,15 @@ def _multibody(w, base_mass, base_half, base_pos, links):
 
     b = p.createMultiBody(
         base_mass, shape(base_half), -1, basePosition=list(base_pos),
-        linkMasses=[l[0] for l in links], linkCollisionShapeIndices=[shape(l[1], l[4]) for l in links],
-        linkVisualShapeIndices=[-1] * len(links), linkPositions=[list(l[3]) for l in links],
-        linkOrientations=[[0, 0, 0, 1]] * len(links), linkInertialFramePositions=[list(l[4]) for l in links],
-        linkInertialFrameOrientations=[[0, 0, 0, 1]] * len(links), linkParentIndices=[l[2] for l in links],
-        linkJointTypes=[p.JOINT_REVOLUTE] * len(links), linkJointAxis=[list(l[5]) for l in links],
+        linkMasses=[lk[0] for lk in links], linkCollisionShapeIndices=[shape(lk[1], lk[4]) for lk in links],
+        linkVisualShapeIndices=[-1] * len(links), linkPositions=[list(lk[3]) for lk in links],
+        linkOrientations=[[0, 0, 0, 1]] * len(links), linkInertialFramePositions=[list(lk[4]) for lk in links],
+        linkInertialFrameOrientations=[[0, 0, 0, 1]] * len(links), linkParentIndices=[lk[2] for lk in links],
+        linkJointTypes=[p.JOINT_REVOLUTE] * len(links), linkJointAxis=[list(lk[5]) for lk in links],
         physicsClientId=cid)
     w.dynamics(b, -1, base_mass, min(base_half))
-    for j, l in enumerate(links):
-        w.dynamics(b, j, l[0], min(l[1]))
+    for j, lk in enumerate(links):
+        w.dynamics(b, j, lk[0], min(lk[1]))
     return b
 
 

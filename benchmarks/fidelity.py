@@ -35,7 +35,8 @@ elsewhere hits every method alike). Non-BoxCCD methods call pybullet's own stepS
 Outputs: ``benchmarks/results/fidelity.csv`` (one row per family x variant x figure x
 method, with the reference's value at dt/K and dt/2K, their difference and the tolerance),
 ``docs/fidelity.png`` (error against the reference versus cost relative to plain, one panel
-per family), a markdown table on stdout (``--quick``: ``fidelity_quick.csv`` and ``.png``). Every family has one scalar error for the plot,
+per family), a markdown table on stdout (``--quick``: ``fidelity_quick.csv`` and ``.png``).
+Every family has one scalar error for the plot,
 named in the CSV (``figure`` column, rows whose ref is 0 by definition).
 
 The families (seeds by default; ``--quick``): 1 ``head_on`` (9 variants: restitution 1, 0.5,
@@ -65,7 +66,6 @@ import multiprocessing as mp
 import os
 import platform
 import random
-import subprocess
 import sys
 import time
 from collections import defaultdict
@@ -77,10 +77,12 @@ import pybullet as p  # noqa: E402
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from _fidelity_scenes import FAMILIES, G, World  # noqa: E402
+from _report import code_version  # noqa: E402
 
 # Imported before any world is built: it wraps pybullet's world-changing calls (its journal
 # of user moves), which BoxCCD needs to have seen.
 from bullet_boxccd import BoxCCD  # noqa: E402
+from bullet_boxccd.validate.tables import markdown  # noqa: E402
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 METHODS = ["plain", "boxccd", "sub2", "sub4", "sub8", "sub16", "native", "ref", "ref2"]
@@ -224,7 +226,7 @@ def run_all(jobs, n_jobs):
             done = list(tqdm(pool.imap_unordered(_job, jobs, chunksize=1), **bar))
     else:
         done = [_job(j) for j in tqdm(jobs, **bar)]
-    for (fk, variant, seed, m, phase), out, us in done:
+    for (fk, variant, seed, m, _), out, us in done:
         if out is None:
             continue
         raw[(fk, variant, m)].setdefault(seed, []).append(out)
@@ -295,12 +297,7 @@ def fmt(x, nd=3):
 
 def print_tables(rows, fams, methods):
     def table(title, header, body):
-        widths = [max(len(str(c)) for c in col) for col in zip(header, *body)]
-        print(f"\n{title}\n")
-        print("| " + " | ".join(str(h).ljust(w) for h, w in zip(header, widths)) + " |")
-        print("|" + "|".join("-" * (w + 2) for w in widths) + "|")
-        for r in body:
-            print("| " + " | ".join(str(c).ljust(w) for c, w in zip(r, widths)) + " |")
+        print(f"\n{title}\n\n{markdown(header, body)}")
 
     for fk in fams:
         fam = FAMILIES[fk]
@@ -316,7 +313,7 @@ def print_tables(rows, fams, methods):
                             + [fmt(get[(f, m)]["value"]) if (f, m) in get else "" for f in figs])
             first = {f: next(r for r in rr if r["figure"] == f) for f in figs}
             if any(m == "ref" for m in ms):
-                body.append([f"|ref - ref2| / tol", "", ""] + [
+                body.append(["|ref - ref2| / tol", "", ""] + [
                     f"{fmt(first[f]['ref_diff'])} / {fmt(first[f]['tol'])} "
                     f"{'ok' if first[f]['converged'] == 1 else 'NOT conv.'}" for f in figs])
             ref_note = (f"ref: dt/{fam.K}, ref2: dt/{2 * fam.K}" + (f", each the mean over {fam.phases} grid phases"
@@ -374,12 +371,7 @@ def study(fams, Ks, seeds_of, n_jobs):
                                                           for f in fam.figures + [fam.error]])
         head = ["K", "us/step"] + [f.name + (f" (vs {finest})" if f.paired else "") + f" [tol {fmt(f.tol)}]"
                                    for f in fam.figures + [fam.error]]
-        widths = [max(len(str(c)) for c in col) for col in zip(head, *body)]
-        print(f"\n{fam.label}: all variants, {seeds_of(fam)} seeds, {fam.phases} phase(s)\n")
-        print("| " + " | ".join(str(h).ljust(w) for h, w in zip(head, widths)) + " |")
-        print("|" + "|".join("-" * (w + 2) for w in widths) + "|")
-        for r in body:
-            print("| " + " | ".join(str(c).ljust(w) for c, w in zip(r, widths)) + " |")
+        print(f"\n{fam.label}: all variants, {seeds_of(fam)} seeds, {fam.phases} phase(s)\n\n{markdown(head, body)}")
 
 
 # ------------------------------------------------------------------ plot
@@ -475,17 +467,6 @@ def plot(rows, fams, methods, path):
 
 
 # ------------------------------------------------------------------ main
-def _code_version():
-    try:
-        head = subprocess.run(["git", "-C", ROOT, "rev-parse", "--short", "HEAD"], capture_output=True, text=True,
-                              check=True).stdout.strip()
-        dirty = subprocess.run(["git", "-C", ROOT, "status", "--porcelain", "--", "bullet_boxccd"],
-                               capture_output=True, text=True, check=True).stdout.strip()
-    except (OSError, subprocess.CalledProcessError):
-        return "unknown (no git)"
-    return head + (" + uncommitted changes in bullet_boxccd/" if dirty else "")
-
-
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--quick", action="store_true", help="few seeds; plain, boxccd, sub4, native and the references")
@@ -522,7 +503,7 @@ def main(argv=None):
           f"pybullet API {p.getAPIVersion()}, numpy {np.__version__}")
     import bullet_boxccd
 
-    print(f"code: {_code_version()}; bullet_boxccd imported from {os.path.dirname(bullet_boxccd.__file__)}")
+    print(f"code: {code_version()}; bullet_boxccd imported from {os.path.dirname(bullet_boxccd.__file__)}")
     print(f"families: {', '.join(fams)}; methods: {', '.join(methods)}; jobs: {args.jobs}")
     TIMING_REPEATS[0] = max(1, args.repeats)
     t0 = time.perf_counter()

@@ -98,11 +98,11 @@ import csv
 import os
 import platform
 import statistics
-import subprocess
 import time
 
 import numpy as np
 import pybullet as p
+from _report import code_version
 from tqdm import tqdm
 
 from bullet_boxccd import BoxCCD
@@ -162,19 +162,6 @@ def build_worlds(n):
 def close_worlds(worlds):
     for w in worlds.values():
         p.disconnect(w[0])
-
-
-def _code_version():
-    """The commit of the tree that is measured, and whether bullet_boxccd differs from it (read-only git)."""
-    root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-    try:
-        head = subprocess.run(["git", "-C", root, "rev-parse", "--short", "HEAD"], capture_output=True, text=True,
-                              check=True).stdout.strip()
-        dirty = subprocess.run(["git", "-C", root, "status", "--porcelain", "--", "bullet_boxccd"],
-                               capture_output=True, text=True, check=True).stdout.strip()
-    except (OSError, subprocess.CalledProcessError):
-        return "unknown (no git)"
-    return head + (" + uncommitted changes in bullet_boxccd/" if dirty else "")
 
 
 # ------------------------------------------------------------ small worlds
@@ -441,7 +428,7 @@ def main(argv=None):
     results_dir = os.path.dirname(args.csv)
     print(f"machine: {platform.platform()}, {platform.processor() or platform.machine()}, "
           f"python {platform.python_version()}, pybullet API {p.getAPIVersion()}, numpy {np.__version__}")
-    print(f"code: {_code_version()}")
+    print(f"code: {code_version()}")
     print(f"seed {args.seed}, window {args.window} steps of 1/240 s (at most 72 from 1000 boxes on), "
           f"{N_PROJ} projectiles per trial")
 

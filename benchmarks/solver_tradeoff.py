@@ -83,9 +83,9 @@ import mpmath as mp
 import numpy as np
 
 from bullet_boxccd import Tolerances, time_of_impact, time_of_impact_batch
+from bullet_boxccd.pybullet_ccd.tradeoff.grid import pareto as _pareto
 from bullet_boxccd.testing import Case, mp_bisect, mp_gap
 from bullet_boxccd.testing import reference as oracle_reference
-from bullet_boxccd.pybullet_ccd.tradeoff.grid import pareto as _pareto
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.dirname(HERE)

@@ -3,8 +3,8 @@
 What it measures
 ----------------
 The scene and the shots are those of ``benchmarks/plugin.py`` (both import them from
-``bullet_boxccd.pybullet_ccd.tradeoff.scenes``): ``--boxes`` dynamic 0.1 m cubes (default 100: a settled pile of 96 plus 4
-projectiles) over a static ground (top face z = 0) and a static 1 cm wall (plane
+``bullet_boxccd.pybullet_ccd.tradeoff.scenes``): ``--boxes`` dynamic 0.1 m cubes (default 100: a
+settled pile of 96 plus 4 projectiles) over a static ground (top face z = 0) and a static 1 cm wall (plane
 x = 0); per seeded trial 2 projectiles are fired at the wall and 2 down at the
 ground at 50..150 m/s with a random spin (``scenes.shots(seed)``), and a window of
 ``--window`` steps of 1/240 s (default 120) is run. Every trial is a task
@@ -96,7 +96,7 @@ import os
 import sys
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from plugin import _code_version  # noqa: E402  (the commit measured)
+from _report import code_version  # noqa: E402  (the commit measured)
 
 from bullet_boxccd.pybullet_ccd.tradeoff.grid import summary_text, sweep, write_outputs  # noqa: E402
 
@@ -115,7 +115,7 @@ def main(argv=None):
     ap.add_argument("--csv", default=os.path.join(HERE, "results", "tradeoff.csv"))
     ap.add_argument("--png", default=os.path.join(ROOT, "docs", "tradeoff.png"))
     args = ap.parse_args(argv)
-    print(f"code: {_code_version()}")
+    print(f"code: {code_version()}")
     rows, tunnels, meta = sweep([args.boxes], args.seed, args.trials, args.window, args.quick, workers=0)
     print(f"{args.boxes} boxes, {meta['trials']} trials (seeds {meta['seeds'][0]}..{meta['seeds'][-1]}), window "
           f"{meta['window']} steps of 1/240 s, 4 projectiles per trial")

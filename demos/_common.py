@@ -12,6 +12,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import pybullet as p
+from _plot import pyplot  # noqa: F401  (the demos import it from here)
 
 from bullet_boxccd.cli import add_demo_options
 
@@ -35,19 +36,6 @@ def demo_setup(doc: str, argv, options: dict):
     args = ap.parse_args(argv)
     pyplot()  # before any work: the picture is the last thing a demo does
     return args, p.connect(p.DIRECT)
-
-
-def pyplot():
-    """matplotlib.pyplot on the headless Agg backend, or a one-line exit without it."""
-    try:
-        import matplotlib
-    except ImportError:
-        raise SystemExit("this demo draws its picture with matplotlib, which is not installed: pip install "
-                         "matplotlib (pip install . from the bullet_boxccd checkout installs it)") from None
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    return plt
 
 
 def print_table(title: str, header, rows) -> None:

@@ -10,28 +10,20 @@ from __future__ import annotations
 
 import argparse
 import os
+import sys
 
 import numpy as np
 
-from bullet_boxccd import Box, QuadraticMotion, bms_planes, sections, time_of_impact
-from bullet_boxccd.cli import add_demo_options
-from bullet_boxccd.motion import rotation_matrix
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from _plot import pyplot  # noqa: E402
+
+from bullet_boxccd import Box, QuadraticMotion, bms_planes, sections, time_of_impact  # noqa: E402
+from bullet_boxccd.cli import add_demo_options  # noqa: E402
+from bullet_boxccd.motion import rotation_matrix  # noqa: E402
 
 OPTIONS = {}  # --out only
 # A box's faces as indices into Box.vertices() (ordered by sign triples (-,-,-), (-,-,+), ...).
 FACES = ((0, 1, 3, 2), (4, 5, 7, 6), (0, 1, 5, 4), (2, 3, 7, 6), (0, 2, 6, 4), (1, 3, 7, 5))
-
-
-def pyplot():
-    try:
-        import matplotlib
-    except ImportError:
-        raise SystemExit("this demo draws its picture with matplotlib, which is not installed: pip install "
-                         "matplotlib (pip install . from the bullet_boxccd checkout installs it)") from None
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    return plt
 
 
 def corners(box, motion, t):

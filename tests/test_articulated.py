@@ -292,7 +292,7 @@ def test_a_partial_step_taken_again_for_a_spin_takes_robots_back_too(cid):
     _world(cid)
     arm = _arm(cid)
     p.resetJointState(arm, 0, -np.pi / 2, 0.0, physicsClientId=cid)
-    wall = p.createMultiBody(0, p.createCollisionShape(p.GEOM_BOX, halfExtents=[0.005, 1, 1], physicsClientId=cid),
+    p.createMultiBody(0, p.createCollisionShape(p.GEOM_BOX, halfExtents=[0.005, 1, 1], physicsClientId=cid),
                              basePosition=[3, 0, 0], physicsClientId=cid)
     cube = p.createMultiBody(1, p.createCollisionShape(p.GEOM_BOX, halfExtents=[0.05] * 3, physicsClientId=cid),
                              basePosition=[2.6, 0.1, 0.05], baseOrientation=p.getQuaternionFromEuler([0.2, -0.1, 0.3]),

@@ -8,13 +8,13 @@ id, masses changed, substeps, and every bad argument."""
 from __future__ import annotations
 
 import os
-import tempfile
 import warnings
 
 import numpy as np
 import pybullet as p
 import pybullet_data
 import pytest
+from capture import CFile
 from pybullet_utils import bullet_client
 
 from bullet_boxccd import BoxCCD, InvalidInputError, _core
@@ -55,26 +55,6 @@ def run(cid, use, steps, before_step=None):
             before_step(k)
         ccd.step() if ccd else p.stepSimulation(physicsClientId=cid)
     return ccd
-
-
-class CFile:
-    """Everything written to the process's stdout and stderr file descriptors (C-level
-    prints included) while inside the ``with``."""
-
-    def __enter__(self):
-        self.tmp = tempfile.TemporaryFile(mode="w+b")
-        self.saved = [os.dup(1), os.dup(2)]
-        for fd in (1, 2):
-            os.dup2(self.tmp.fileno(), fd)
-        return self
-
-    def __exit__(self, *exc):
-        for fd, saved in zip((1, 2), self.saved):
-            os.dup2(saved, fd)
-            os.close(saved)
-        self.tmp.seek(0)
-        self.text = self.tmp.read().decode(errors="replace")
-        self.tmp.close()
 
 
 # ------------------------------------------------------ maximal coordinates

@@ -24,6 +24,7 @@ import numpy as np
 import pybullet as p
 import pybullet_data
 import pytest
+from capture import CFile
 
 from bullet_boxccd import BoxCCD
 from bullet_boxccd.pybullet_ccd import BoxCCDWarning, _hooks, mjcf
@@ -39,26 +40,6 @@ def run_python(code, *args, timeout=300):
     r = subprocess.run([sys.executable, "-c", textwrap.dedent(code), *args], capture_output=True, text=True,
                        timeout=timeout, cwd=tempfile.gettempdir())
     return r.returncode, r.stdout, r.stderr
-
-
-class CFile:
-    """Everything written to the process's stdout and stderr file descriptors (C-level
-    prints included) while inside the ``with``."""
-
-    def __enter__(self):
-        self.tmp = tempfile.TemporaryFile(mode="w+b")
-        self.saved = [os.dup(1), os.dup(2)]
-        for fd in (1, 2):
-            os.dup2(self.tmp.fileno(), fd)
-        return self
-
-    def __exit__(self, *exc):
-        for fd, saved in zip((1, 2), self.saved):
-            os.dup2(saved, fd)
-            os.close(saved)
-        self.tmp.seek(0)
-        self.text = self.tmp.read().decode(errors="replace")
-        self.tmp.close()
 
 
 def reset(cid):

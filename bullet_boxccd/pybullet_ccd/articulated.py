@@ -37,8 +37,8 @@ from ..motion import pose7, pose_matrix
 from ..solver import Outcome
 from ._hooks import raw
 from .chain import read_chain
-from .events import CCDEvent
 from .contacts import bounce, place
+from .events import CCDEvent
 from .layout import ANGULAR_VELOCITY, POSE, TWIST, VELOCITY
 from .sweep import CREEP, overlap_query
 from .world import FREE, LINK
@@ -228,7 +228,7 @@ class Articulated:
         frames pushed})."""
         t = self.tables
         stops, pushes = {}, []
-        for touch, act, c, initial, pressing, rec, f, g, pair in found:
+        for _, act, _, _, pressing, rec, f, g, pair in found:
             if act is None:
                 continue
             partner = self.bodies.get(int(t.body[g]))

@@ -85,7 +85,8 @@ def sweep(cid, tables, state, dt, fit_tolerance, tolerances, penetration, stats,
     fast, slack, fast_frames = fast
     if at_clamp is not None:
         rows = state.rows[fast_frames]
-        speeds = np.stack([np.linalg.norm(rows[:, VELOCITY], axis=1), np.linalg.norm(rows[:, ANGULAR_VELOCITY], axis=1)])
+        speeds = np.stack([np.linalg.norm(rows[:, VELOCITY], axis=1),
+                           np.linalg.norm(rows[:, ANGULAR_VELOCITY], axis=1)])
         clamped = np.any(np.abs(speeds - _PYBULLET_CLAMP) <= 1e-9 * _PYBULLET_CLAMP, axis=0)
         if clamped.any():
             at_clamp([f for f, c in zip(fast_frames, clamped) if c])
