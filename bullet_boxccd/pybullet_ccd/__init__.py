@@ -387,11 +387,12 @@ class BoxCCD:
         return sorted(events, key=lambda e: e.tau), tau
 
     def _at_clamp(self, frames):
-        """Fast frames moving or turning at exactly pybullet's default velocity clamp."""
+        """Fast frames moving or turning at exactly pybullet's default velocity clamp, of bodies
+        whose clamp was not changed (changeDynamics(maxJointVelocity=...))."""
         for f in frames:
             b = self.world.tables.keys[f][0]
-            if self.world.maximal(b):
-                continue
+            if self.world.maximal(b) or self.world.journal.max_velocity.get(b, 100.0) != 100.0:
+                continue  # pybullet clamps multibodies only, and this one's clamp was moved
             self._warn(("clamp", b), f"body {b} moves or turns at 100 (m/s, rad/s), pybullet's default "
                                      "velocity clamp: if it was given more, pybullet cut it to that "
                                      f"(p.changeDynamics({b}, -1, maxJointVelocity=...) lifts it)")

@@ -90,6 +90,7 @@ class Journal:
     params: int = 0  # fixedTimeStep / numSubSteps / gravity changed
     num_substeps: int = 0  # as last set through setPhysicsEngineParameter (0: never set)
     contact_erp: float = CONTACT_ERP  # as last set through setPhysicsEngineParameter (pybullet reports none)
+    max_velocity: dict = field(default_factory=dict)  # body -> maxJointVelocity set through changeDynamics
     # Collision filters, as pybullet's collision filter plugin keeps them.
     pair_rules: dict = field(default_factory=dict)  # (body, link, body, link) in pybullet's key order -> enable
     group_mask: dict = field(default_factory=dict)  # (body, link) -> (group, mask) set by the user
@@ -481,6 +482,8 @@ def _load_soft_body(cid, a, result):
 
 
 def _change_dynamics(cid, a, result):
+    if a.get("maxJointVelocity") is not None:
+        journal(cid).max_velocity[int(a["bodyUniqueId"])] = float(a["maxJointVelocity"])
     if "mass" in a:  # a mass change may switch a base between fixed and free
         b = int(a["bodyUniqueId"])
         j = _structure(cid, b)

@@ -89,7 +89,7 @@ def sweep(cid, tables, state, dt, fit_tolerance, tolerances, penetration, stats,
                            np.linalg.norm(rows[:, ANGULAR_VELOCITY], axis=1)])
         clamped = np.any(np.abs(speeds - _PYBULLET_CLAMP) <= 1e-9 * _PYBULLET_CLAMP, axis=0)
         if clamped.any():
-            at_clamp([f for f, c in zip(fast_frames, clamped) if c])
+            at_clamp([f for f, c in zip(fast_frames, clamped) if c])  # it checks the body's own clamp
     state.read_poses(state.stale(fast_frames))
     stats.swept_boxes += len(fast)
     t1 = time.perf_counter()
