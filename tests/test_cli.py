@@ -7,6 +7,7 @@ from __future__ import annotations
 import json
 import subprocess
 import sys
+import tempfile
 from importlib.metadata import version
 from pathlib import Path
 
@@ -29,9 +30,11 @@ def run_main(capsys, *argv):
     return code, out.out, out.err
 
 
-def boxccd(*argv, cwd=None):
-    return subprocess.run([sys.executable, "-m", "bullet_boxccd", *argv], capture_output=True, text=True,
-                          cwd=cwd, timeout=120)
+def boxccd(*argv):
+    """The installed command, run outside the checkout (whose bullet_boxccd/ has no built core)."""
+    with tempfile.TemporaryDirectory() as cwd:
+        return subprocess.run([sys.executable, "-m", "bullet_boxccd", *argv], capture_output=True, text=True,
+                              cwd=cwd, timeout=120)
 
 
 # ------------------------------------------------------------------ --version, demo options
