@@ -318,7 +318,10 @@ class Articulated:
         creep = CREEP * thin
         pressing = d0 > -creep
         target = max(d0, 0.0) + max(penetration, creep) if pressing else penetration
-        act = float(_core.paths_first_depth(a, b, touch, target))
+        if pressing and float(_core.paths_depth(a, b, 1.0)) < target:
+            act = math.nan  # a pressing pair that ends shallower than the creep: pybullet's
+        else:
+            act = float(_core.paths_first_depth(a, b, touch, target))
         if c.feature is not None:
             contact = (c.point, c.normal, c.feature)
         else:  # no BMS plane found (a touch at the start, or on a piece too fast to fit): no feature to name
