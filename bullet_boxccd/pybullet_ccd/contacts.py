@@ -11,16 +11,18 @@ is pushed out the far side, and one that went through is never seen). For every
 contact the sweep found (the first touch, on conservatively fitted motions), the pair's
 state at the end of the step decides:
 
-* Left to pybullet: the pair touched when the window began and does not go wrong, or it
-  met inside the window and ends it overlapping by less than ``depth_tolerance`` on the
-  right side.
+* Left to pybullet: the pair touched when the window began and ends less than
+  ``depth_tolerance`` deeper without going wrong, or it met inside the window and ends
+  it overlapping by less than ``depth_tolerance`` on the right side.
 * Otherwise the world is taken back to the time the pair first overlaps by
-  ``penetration`` on Bullet's own path (``BoxCCD`` then simulates the rest of the step
-  from there, so that pybullet's solver sees the contact as it begins). Every free
-  body goes where its path has it at that time, with the velocity it had there.
-* When the step's partial steps are used up (``max_partial_steps``), only the bodies
-  of such a pair go back, to that time, keeping their velocities; pybullet resolves
-  the contact at the next step.
+  ``penetration`` on Bullet's own path (a pair already touching: by a creep more than it
+  began with), and ``BoxCCD`` simulates the rest of the step from there, so that
+  pybullet's solver sees the contact as it begins. Every free body goes where its path
+  has it at that time, with the velocity it had there.
+* A pair still pressing in after the world went back to it twice in the step, and every
+  such pair once the step's partial steps are used up (``max_partial_steps``), stops on
+  its own at that time instead, with its velocity there; pybullet resolves it at the
+  next step.
 
 Kinematic bodies (a fixed base the user teleports) cannot be taken back: a free body a
 teleport swept into is carried with it from the touch and leaves with the velocity of
