@@ -79,7 +79,7 @@ class BoxCCD:
     penetration : float
         Depth (m) of the overlap of the sharp boxes at the time the world is taken back
         to, in (0, 1e-3]. Bullet's box-box detector makes a contact from the touch on,
-        but at a smaller overlap than about 1e-6 m it may see one corner of a leading
+        but at an overlap of 2e-7 m it may see one corner of a leading
         edge or face and not the others. Default 1e-5.
     depth_tolerance : float
         A pair that meets inside a step and ends it overlapping by less than this (m),
