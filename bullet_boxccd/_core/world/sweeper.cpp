@@ -34,27 +34,32 @@ std::vector<std::pair<int64_t, int64_t>> candidate_pairs(const double *bounds, i
     return out;
 }
 
-void path_rows(const double *state, size_t n_frames, double dt, const int64_t *boxes, size_t n,
-               const BoxTable &table, double *out) {
+// For each of the n boxes (indices checked against the table and their frames against
+// n_frames): row(box, its frame, its output row).
+template <class Row>
+static void for_each_box_row(const int64_t *boxes, size_t n, size_t n_frames, const BoxTable &table, double *out,
+                             Row row) {
     for (size_t i = 0; i < n; ++i) {
         const int64_t b = boxes[i];
         check_index(b, table.n, "box");
         const int64_t f = table.box_frame[b];
         check_index(f, n_frames, "frame");
-        path_row(state + kFrameStateSize * f, dt, table.X_CS + 16 * b, table.half + 3 * b, out + kPathBoxSize * i);
+        row(b, f, out + kPathBoxSize * i);
     }
+}
+
+void path_rows(const double *state, size_t n_frames, double dt, const int64_t *boxes, size_t n,
+               const BoxTable &table, double *out) {
+    for_each_box_row(boxes, n, n_frames, table, out, [&](int64_t b, int64_t f, double *row) {
+        path_row(state + kFrameStateSize * f, dt, table.X_CS + 16 * b, table.half + 3 * b, row);
+    });
 }
 
 void path_rows_between(const double *poses0, const double *poses1, size_t n_frames, const int64_t *boxes, size_t n,
                        const BoxTable &table, double *out) {
-    for (size_t i = 0; i < n; ++i) {
-        const int64_t b = boxes[i];
-        check_index(b, table.n, "box");
-        const int64_t f = table.box_frame[b];
-        check_index(f, n_frames, "frame");
-        path_row_between(poses0 + 7 * f, poses1 + 7 * f, table.X_CS + 16 * b, table.half + 3 * b,
-                         out + kPathBoxSize * i);
-    }
+    for_each_box_row(boxes, n, n_frames, table, out, [&](int64_t b, int64_t f, double *row) {
+        path_row_between(poses0 + 7 * f, poses1 + 7 * f, table.X_CS + 16 * b, table.half + 3 * b, row);
+    });
 }
 
 void frame_poses(const double *state, size_t n_frames, double dt, const int64_t *frames, const double *taus,
