@@ -2,58 +2,19 @@
 
 import sys as _sys
 
+from . import solver as _solver
 from .geometry import Box
 from .motion import QuadraticMotion
-from .solver import (
-    Contact,
-    Feature,
-    InvalidBoxError,
-    InvalidInputError,
-    InvalidMotionError,
-    InvalidShapeError,
-    InvalidTimeRangeError,
-    InvalidToleranceError,
-    NonFiniteInputError,
-    Outcome,
-    Plane,
-    SingularMotionError,
-    Tolerances,
-    bms_planes,
-    sections,
-    time_of_impact,
-    time_of_impact_batch,
-)
+from .solver import *  # noqa: F401,F403  (the solver's public names: solver.__all__)
 
-__all__ = [
-    "BoxCCD",
-    "BoxCCDWarning",
-    "ClientDisconnectedError",
-    "CCDEvent",
-    "Box",
-    "QuadraticMotion",
-    "Contact",
-    "Feature",
-    "Outcome",
-    "Plane",
-    "Tolerances",
-    "time_of_impact",
-    "time_of_impact_batch",
-    "sections",
-    "bms_planes",
-    "InvalidInputError",
-    "InvalidShapeError",
-    "NonFiniteInputError",
-    "InvalidBoxError",
-    "InvalidMotionError",
-    "SingularMotionError",
-    "InvalidTimeRangeError",
-    "InvalidToleranceError",
-]
+# The pybullet adapter's names, imported on first use (the solver works without pybullet).
+_ADAPTER = ("BoxCCD", "BoxCCDWarning", "ClientDisconnectedError", "CCDEvent", "CCDStats")
+
+__all__ = [*_ADAPTER[:4], "Box", "QuadraticMotion", *_solver.__all__]
 
 
 def __getattr__(name):
-    # The pybullet adapter is imported on first use, so the solver works without pybullet.
-    if name in ("BoxCCD", "BoxCCDWarning", "ClientDisconnectedError", "CCDEvent", "CCDStats"):
+    if name in _ADAPTER:
         from . import pybullet_ccd
 
         return getattr(pybullet_ccd, name)
