@@ -300,7 +300,8 @@ class BoxCCD:
         clamp of pi/4 a step in it (above the clamp, the turn Bullet integrates is slower
         than the spin its contact solver sees: a spinning box would press on into what it
         strikes)."""
-        return rest / math.ceil(self._spin() * rest / _CLAMP - 1e-9) if self._spin() * rest > _CLAMP else rest
+        turn = self._spin() * rest
+        return rest / math.ceil(turn / _CLAMP - 1e-9) if turn > _CLAMP else rest
 
     def _spin(self):
         """The fastest spin (rad/s) of the frames of the contact the world was taken back to."""
@@ -308,10 +309,10 @@ class BoxCCD:
         return float(np.max(np.linalg.norm(self._state.rows[frames, ANGULAR_VELOCITY], axis=1))) if frames else 0.0
 
     def _within_clamp(self, piece, h):
-        """After a partial step of ``piece`` seconds: if the impact at its start spun a body
-        of the contact past Bullet's turn clamp in it, the world goes back to the partial step's start (every
-        body where its path has it then, with the velocities it started with) and takes a
-        partial step short enough for that spin, once. Returns the length taken."""
+        """After a partial step of ``piece`` seconds: if the impact at its start spun a body of
+        the contact past Bullet's turn clamp in it, the world goes back to the partial step's
+        start (every body where its path has it then, with the velocities it started with)
+        and takes a partial step short enough for that spin, once. Returns its length."""
         st = self._state
         st.read_velocities()
         spin = self._spin()
