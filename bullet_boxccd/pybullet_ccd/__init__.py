@@ -359,15 +359,15 @@ class BoxCCD:
             if again:
                 self._chains.stop_each(again, st, h, self.stats)
                 found = [x for x in found if not any(x is y for y in again)]
-            tau_links, links_acted, links_impact = self._chains.act_at(found)
+            tau_links, links_acted = self._chains.act_at(found)
             events, tau = self.contacts.resolve(sw, jw, t, st, h, user_moved, self._gravity, True, tau_links,
                                                 self._struck, self._presses)
             if tau < 1.0:
-                self._chains.stop_all(tau, st, self._struck)
+                self._chains.stop_all(tau, st)
                 if self.contacts.acted:
                     self._acted, self._struck = self.contacts.acted, self.contacts.struck
                 else:
-                    self._acted, self._struck = links_acted, links_acted if links_impact else set()
+                    self._acted, self._struck = links_acted, set()
                     first = min((x for x in found if x[1] == tau_links), key=lambda x: x[0])
                     if first[3]:
                         key = (first[6], first[7])

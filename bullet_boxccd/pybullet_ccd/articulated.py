@@ -215,12 +215,12 @@ class Articulated:
     @staticmethod
     def act_at(found):
         """(the earliest time one of ``find``'s contacts needs the world back at (1 if
-        none), the frames of that contact, whether it is an impact: met inside the step)."""
+        none), the frames of that contact)."""
         acting = [x for x in found if x[1] is not None]
         if not acting:
-            return 1.0, set(), False
+            return 1.0, set()
         first = min(acting, key=lambda x: x[1])
-        return first[1], {first[6], first[7]}, not first[3]
+        return first[1], {first[6], first[7]}
 
     def stop_each(self, found, state, dt, stats):
         """Stop each body whose pair needs it at its own time (with its velocities there), or
@@ -378,13 +378,14 @@ class Articulated:
             state.rows[f, TWIST] = 0.0
         rec.motion = None  # its paths are no longer this step's
 
-    def stop_all(self, tau, state, struck=frozenset()):
-        """The world taken back to tau: every articulated body where its path has it then
-        (those with a frame ``struck`` at the start of the step keep their velocities after
-        it: they took their impact's impulse whole then)."""
+    def stop_all(self, tau, state):
+        """The world taken back to tau: every articulated body where its path has it then,
+        with its velocities there in proportion (even when struck as the partial step began:
+        its motors' impulses, kept whole with the impact's, would be applied twice, and a
+        landing robot pumped up by them left the floor)."""
         for rec in self.bodies.values():
             if rec.motion is not None:
-                self.stop(rec, tau, state, back=not set(struck).intersection(rec.frames))
+                self.stop(rec, tau, state, back=True)
 
 
 def _goes_wrong(a, b, s_act):
