@@ -8,7 +8,7 @@ Every family has three small functions:
   number of coarse steps ``s.steps`` to run, an optional ``s.control(w, s, t, h)`` called
   before every solver step of h seconds starting at time t, and what ``observe`` records),
 * ``observe(w, s, k)``: after coarse step k (at time ``w.t``), record what the figures need,
-* ``measure(w, s) -> dict``: the seed's numbers (floats, bools, small arrays).
+* ``measure(w, s) -> dict``: the run's numbers (floats, bools, small arrays).
 
 and a ``Family`` entry in ``FAMILIES`` with its step, the reference's refinement K, the
 seeds, the figures (statistics over seeds, each with the tolerance the reference must

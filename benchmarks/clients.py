@@ -17,7 +17,7 @@ calls in brackets where more), the largest |difference| between the bare and Box
 observations (envs) and of all bodies' base poses and link frames (both), with the
 first step that differs; BoxCCD's rewinds, partial steps, contacts and swept boxes; every
 BoxCCDWarning; the median wall time per stepSimulation call, plain and BoxCCD, and
-their ratio (median over the seeds of each seed's ratio of medians), and the same ratio
+their ratio (median over the seeds of each seeded run's ratio of medians), and the same ratio
 over the steps where BoxCCD swept no box (nothing fast); BoxCCD's own
 breakdown (``ccd.stats.seconds`` per step).
 

@@ -8,7 +8,7 @@ settled pile of 96 plus 4 projectiles) over a static ground (top face z = 0) and
 x = 0); per seeded trial 2 projectiles are fired at the wall and 2 down at the
 ground at 50..150 m/s with a random spin (``scenes.shots(seed)``), and a window of
 ``--window`` steps of 1/240 s (default 120) is run. Every trial is a task
-of its own: the scene is built and settled in a new pybullet client, then that seed's
+of its own: the scene is built and settled in a new pybullet client, then the seeded
 shots are fired, so every configuration sees the same settled pile and the same shots;
 tasks run seeds outer, configurations inner (a burst of load from elsewhere hits all).
 The grid, the task and the outputs live in ``bullet_boxccd.pybullet_ccd.tradeoff.grid``: this program

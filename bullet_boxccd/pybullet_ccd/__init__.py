@@ -42,7 +42,7 @@ import pybullet
 
 from .._arrays import as_float_array
 from ..solver import DEFAULT_TOLERANCES, InvalidInputError, Tolerances
-from ._hooks import last_serial, raw, replay_impulses
+from ._hooks import MAX_VELOCITY, last_serial, raw, replay_impulses
 from .articulated import Articulated
 from .contacts import Contacts
 from .events import BoxCCDWarning, CCDEvent, CCDStats, ClientDisconnectedError
@@ -392,9 +392,9 @@ class BoxCCD:
         whose clamp was not changed (changeDynamics(maxJointVelocity=...))."""
         for f in frames:
             b = self.world.tables.keys[f][0]
-            if self.world.maximal(b) or self.world.journal.max_velocity.get(b, 100.0) != 100.0:
+            if self.world.maximal(b) or self.world.journal.max_velocity.get(b, MAX_VELOCITY) != MAX_VELOCITY:
                 continue  # pybullet clamps multibodies only, and this one's clamp was moved
-            self._warn(("clamp", b), f"body {b} moves or turns at 100 (m/s, rad/s), pybullet's default "
+            self._warn(("clamp", b), f"body {b} moves or turns at {MAX_VELOCITY:g} (m/s, rad/s), pybullet's default "
                                      "velocity clamp: if it was given more, pybullet cut it to that "
                                      f"(p.changeDynamics({b}, -1, maxJointVelocity=...) lifts it)")
 

@@ -41,6 +41,8 @@ __all__ = ["Journal", "journal", "raw", "install", "new_serial", "last_serial", 
 # pybullet's default contactERP (the share of a contact's penetration its solver removes in a
 # step, as a velocity of erp depth / dt): measured, setting 0.08 leaves every world bit-identical.
 CONTACT_ERP = 0.08
+# pybullet's default maxJointVelocity: it clamps a multibody's |v| (m/s) and |w| (rad/s) to it.
+MAX_VELOCITY = 100.0
 # pybullet's defaults (PhysicsServerCommandProcessor): collisionFilterMode 1 ("group A
 # & mask B, OR group B & mask A"); a new world starts with it.
 OR_MODE = 1

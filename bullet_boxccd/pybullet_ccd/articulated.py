@@ -239,7 +239,7 @@ class Articulated:
             if partner is not None and partner is not rec:
                 stops[partner.body] = min(stops.get(partner.body, act), act)
         for b, tau in stops.items():
-            self.stop(self.bodies[b], tau, state, back=True)
+            self.stop(self.bodies[b], tau, state)
         stats.rewinds += len(stops)
         pushed = set()
         for tau, rec, f, g, pair in pushes:
@@ -352,16 +352,15 @@ class Articulated:
         place(self.cid, self.tables, state, g, pose7(X1), v, state.rows[g, ANGULAR_VELOCITY].copy())
 
     # ------------------------------------------------------------ stopping
-    def stop(self, rec, tau, state, back=False):
-        """Put the body where its path has it at tau (base pose, joint positions); its
-        frames stand still from there. With ``back``, its velocities are those it had at
-        tau: between its velocities before and after the step, in proportion (after the
-        step if those before are not known); else those after (a body struck as the step
-        began took its impulse whole then)."""
+    def stop(self, rec, tau, state):
+        """Put the body where its path has it at tau (base pose, joint positions), with the
+        velocities it had there: between its velocities before and after the step, in
+        proportion (after the step if those before are not known); its frames stand still
+        from there."""
         cid, m = self.cid, rec.motion
         base = m.base_pose(tau)
         twist, qdot = rec.base_state[7:13].copy(), rec.qdot
-        if back and rec.start is not None and len(rec.start[1]) == len(qdot):
+        if rec.start is not None and len(rec.start[1]) == len(qdot):
             twist = rec.start[0] + tau * (twist - rec.start[0])
             qdot = rec.start[1] + tau * (qdot - rec.start[1])
         rec.base_state[7:13], rec.qdot = twist, qdot  # the next (partial) step starts from these
@@ -380,12 +379,12 @@ class Articulated:
 
     def stop_all(self, tau, state):
         """The world taken back to tau: every articulated body where its path has it then,
-        with its velocities there in proportion (even when struck as the partial step began:
-        its motors' impulses, kept whole with the impact's, would be applied twice, and a
-        landing robot pumped up by them left the floor)."""
+        with its velocities there in proportion (even when struck as the partial step began,
+        unlike a free body: its motors' impulses, kept whole with the impact's, would be
+        applied twice, and a landing robot pumped up by them left the floor)."""
         for rec in self.bodies.values():
             if rec.motion is not None:
-                self.stop(rec, tau, state, back=True)
+                self.stop(rec, tau, state)
 
 
 def _goes_wrong(a, b, s_act):

@@ -20,7 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .. import _core
-from ._hooks import raw
+from ._hooks import MAX_VELOCITY, raw
 from .layout import ANGULAR_VELOCITY, POSE, TWIST, VELOCITY
 from .world import FREE
 
@@ -60,9 +60,6 @@ class Sweep:
         return {(int(i), int(j)): q for q, (i, j) in enumerate(self.pairs.tolist())}
 
 
-# pybullet's default maxJointVelocity: it clamps |v| (m/s) and |w| (rad/s) of a body to it.
-_PYBULLET_CLAMP = 100.0
-
 # A step's partners of the fast boxes come from pybullet's broad phase (one
 # getOverlappingObjects per fast box) unless reading every moving frame's pose costs
 # less: measured on pybullet 3.2.7, the query costs about as much as 4 pose reads; the
@@ -87,7 +84,7 @@ def sweep(cid, tables, state, dt, fit_tolerance, tolerances, penetration, stats,
         rows = state.rows[fast_frames]
         speeds = np.stack([np.linalg.norm(rows[:, VELOCITY], axis=1),
                            np.linalg.norm(rows[:, ANGULAR_VELOCITY], axis=1)])
-        clamped = np.any(np.abs(speeds - _PYBULLET_CLAMP) <= 1e-9 * _PYBULLET_CLAMP, axis=0)
+        clamped = np.any(np.abs(speeds - MAX_VELOCITY) <= 1e-9 * MAX_VELOCITY, axis=0)
         if clamped.any():
             at_clamp([f for f, c in zip(fast_frames, clamped) if c])  # it checks the body's own clamp
     state.read_poses(state.stale(fast_frames))

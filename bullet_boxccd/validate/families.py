@@ -77,7 +77,7 @@ def random_rotations(rng, n) -> np.ndarray:
 
 # ``_through`` and ``screw`` fit the same motions as motion.through_coeffs and
 # motion.screw_coeffs, rounded otherwise (an inverse Vandermonde matrix; the translation
-# fitted too): a seed's queries are fixed to the bit (shards resume from reports, committed
+# fitted too): the queries of a random seed are fixed to the bit (shards resume from reports, committed
 # case files name their shard and index), so they stay until the report format changes.
 def _through(times, poses) -> np.ndarray:
     """(n, 3, 4, 4) quadratic through three (n, 4, 4) poses at three shared times."""

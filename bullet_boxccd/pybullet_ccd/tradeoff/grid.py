@@ -3,7 +3,7 @@
 Shared by ``benchmarks/tradeoff.py`` (in this process) and ``boxccd sweep`` (on Ray, or in
 this process with ``--workers 0``); both write the same CSV and Pareto plot from the same
 seeds. A task is one (configuration, scene, seed): it builds the scene of
-``tradeoff.scenes`` (``boxes`` dynamic cubes) in a new DIRECT client, fires that seed's
+``tradeoff.scenes`` (``boxes`` dynamic cubes) in a new DIRECT client, fires the seeded
 shots, runs ``window`` steps of 1/240 s and returns what ``benchmarks/tradeoff.py``
 documents (its module docstring defines every metric):
 
