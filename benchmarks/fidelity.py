@@ -19,7 +19,7 @@ Per family (the scenes: ``benchmarks/_fidelity_scenes.py``, one ``build``/``obse
   figure compares seeds one by one (head-on, pusher) the reference is the mean over
   ``phases`` offsets of its step grid (a first step of j/phases of a fine step): pybullet's
   rebound depends on where in its step a touch falls (the contact's position correction
-  adds up to 8 % of the impact speed, linearly in that phase, at every step size), so a
+  adds up to about 7 % of the impact speed, linearly in that phase, at every step size), so a
   single fine run does not converge seed by seed, while the phase mean does.
 
 Controls (the pusher's velocity) are applied before every solver step of a method (each
