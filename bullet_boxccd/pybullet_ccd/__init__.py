@@ -142,10 +142,11 @@ class BoxCCD:
             self.stats.rediscoveries += 1
             t = self.world.tables
             self._sweep_reach = np.minimum(self.sweep_threshold * 2.0 * t.half.min(axis=1), self.sweep_distance)
-            self._chains = Articulated(self.cid, t, self.world.self_collision(), self._warn)
+            self._chains = Articulated(self.cid, t, self.world.self_collision(), self._sweep_reach, self._warn)
             rigid_reach = self._sweep_reach.copy()
             rigid_reach[self._chains.boxes] = math.inf  # swept on their own paths (articulated)
             self._state = FrameState(self.cid, t, rigid_reach, self._chains.frames)
+            self._watched = bool(self._state.moving) or bool(self._chains.watched)
             self._known = False
             self.stats.tracked_boxes = len(t.half)
             small = t.half.min() if len(t.half) else math.inf
@@ -204,13 +205,19 @@ class BoxCCD:
         if self._quiet and last_serial() == self._epoch and raw.getNumBodies(physicsClientId=cid) == self.world.count:
             # Nothing changed in the world since the last step: step, read the velocities
             # (the one read per body pybullet's API forces), and stop there if nothing is fast.
+            self.stats.steps += 1
+            if not self._watched:  # no box that moves can meet another
+                raw.stepSimulation(physicsClientId=cid)
+                self._known = False
+                self.world.journal.impulses.clear()
+                return []
             st = self._state
             st.begin(self._known)
             raw.stepSimulation(physicsClientId=cid)
             self._known = True
-            fast = st.sweeper.fast(self._dt, st.moving, st.twists())
-            self.stats.steps += 1
-            if fast is None and (not self._chains.bodies or self._chains.idle(self._dt, self._sweep_reach)):
+            fast = st.sweeper.fast(self._dt, st.moving, st.twists()) if st.moving else None
+            if fast is None and (not self._chains.watched or self._chains.idle(self._dt)):
+                self.world.journal.impulses.clear()
                 return []
             events = self._step(self._dt, 0.0, self._dt, stepped=True, fast=fast)
         else:
@@ -402,7 +409,7 @@ class BoxCCD:
         if not self._chains.bodies:
             return []
         t0 = time.perf_counter()
-        found = self._chains.find(h, self._state, self._sweep_reach, self.fit_tolerance, self.tolerances,
+        found = self._chains.find(h, self._state, self.fit_tolerance, self.tolerances,
                                   self.penetration, self.stats)
         self.stats.seconds["solve"] += time.perf_counter() - t0
         return found

@@ -59,20 +59,27 @@ class _Body:
     qdot: np.ndarray = None
     paths: dict = field(default_factory=dict)  # box -> BoxPath of the current step
     link_of_frame: np.ndarray = None  # (len(frames),) int64: each frame's link
+    frame_index: np.ndarray = None  # (len(frames),) int64: ``frames``
     moving_joints: list = None  # its joints that are not fixed, and where each one's
     q_spans: list = None  # coordinates and velocities lie in the flat q and qdot
     qdot_spans: list = None
     start: tuple = None  # (base velocity (6,), qdot) when the step began, if known
-    span: float = None  # farthest a box point can be from the base (m), without prismatic extensions
-    reach: float = None  # the smallest sweep reach of its boxes
+    box_links: np.ndarray = None  # (len(boxes),) each box's link (-1: base), its pose on the link's frame
+    box_X: np.ndarray = None  # (len(boxes), 4, 4), half extents (len(boxes), 3) and sweep reach (len(boxes),)
+    box_half: np.ndarray = None
+    box_reach: np.ndarray = None
+    base_idle: tuple = None  # (radius, reach): the base's farthest box point, its boxes' smallest sweep reach
+    link_idle: tuple = None  # ([link], [radius], [reach]): the same for each link with boxes
+    alone: bool = False  # no box of it can meet another tracked box (none in other bodies, no self pairs)
+    fast: bool = False  # whether a box of it was swept in the last step
 
 
 class Articulated:
     """The articulated bodies of a world (see the module docstring)."""
 
-    def __init__(self, cid, tables, self_collision, warn):
+    def __init__(self, cid, tables, self_collision, sweep_reach, warn):
         """``self_collision``: {body: URDF_USE_SELF_COLLISION* bits} of the bodies whose links
-        collide with each other."""
+        collide with each other; ``sweep_reach``: (boxes,) a box moving farther in a step is swept."""
         self.cid, self.tables = cid, tables
         self.bodies = {}
         for b, frames in tables.frames_of.items():
@@ -89,6 +96,16 @@ class Articulated:
                                    _excluded(chain.parent, bits) if bits is not None else None)
         for rec in self.bodies.values():
             rec.link_of_frame = np.array([rec.links[f] for f in rec.frames], dtype=np.int64)
+            rec.frame_index = np.array(rec.frames, dtype=np.int64)
+            ids = np.array([i for _, i in rec.boxes], dtype=np.int64)
+            rec.box_links = np.array([rec.links[f] for f, _ in rec.boxes], dtype=np.int64)
+            rec.box_X, rec.box_half, rec.box_reach = tables.X_CS[ids], tables.half[ids], sweep_reach[ids]
+            per_link = {}
+            for k, link in enumerate(rec.box_links.tolist()):
+                r, reach = per_link.get(link, (0.0, math.inf))
+                per_link[link] = (max(r, float(tables.radius[ids[k]])), min(reach, float(rec.box_reach[k])))
+            rec.base_idle = per_link.pop(-1, None)
+            rec.link_idle = (list(per_link), *zip(*per_link.values())) if per_link else None
             ch = rec.chain
             rec.moving_joints = [j for j in range(ch.n_links) if ch.joint_type[j] != pybullet.JOINT_FIXED]
             spherical = [ch.joint_type[j] == pybullet.JOINT_SPHERICAL for j in rec.moving_joints]
@@ -96,36 +113,33 @@ class Articulated:
                            for j, s in zip(rec.moving_joints, spherical)]
             rec.qdot_spans = [(int(ch.qdot_index[j]), int(ch.qdot_index[j]) + (3 if s else 1))
                               for j, s in zip(rec.moving_joints, spherical)]
+            others = len(tables.half) > len(rec.boxes)
+            rec.alone = not others and not (rec.ancestors is not None and len(rec.boxes) > 1)
+        self.watched = [rec for rec in self.bodies.values() if not rec.alone]  # the bodies that can meet a box
         self.frames = {f for rec in self.bodies.values() for f in rec.frames}
         self.boxes = np.array(sorted(i for rec in self.bodies.values() for _, i in rec.boxes), dtype=np.int64)
-        self._rigid = np.setdiff1d(np.arange(len(tables.radius)), self.boxes, assume_unique=True)
 
     # ------------------------------------------------------------ reading
-    def idle(self, dt, sweep_reach) -> bool:
-        """Whether no point of any articulated body's boxes can have moved its box's sweep
-        reach in the step of dt just taken, from two reads per body (base velocity, joint
-        velocities) and a bound that holds in every configuration: a point moves no faster
-        than the base's speed plus, for the base's spin and each joint's rate, that rate
-        times the farthest any box point can be from the base (the sum of the body's joint
-        offsets and its largest box reach; a prismatic joint adds its extension)."""
+    def idle(self, dt) -> bool:
+        """Whether no box of a body that can meet another box moved farther than its sweep
+        reach in the step of dt just taken, as ``find`` decides it, from one read per body:
+        every box link's velocities after the step (getLinkStates; the base's by
+        getBaseVelocity), a point of a link moving by at most (|v| + |w| r) dt, r its
+        farthest box point from the link's centre of mass. A body with a box swept in the
+        last step is taken to move still (it is read whole at once)."""
         cid = self.cid
-        for rec in self.bodies.values():
-            v, w = raw.getBaseVelocity(rec.body, physicsClientId=cid)
-            if rec.span is None:
-                ch, t = rec.chain, self.tables
-                boxes = [i for _, i in rec.boxes]
-                rec.span = float(np.sum(np.linalg.norm(ch.parent_pos, axis=1) + np.linalg.norm(ch.inertial_pos, axis=1))
-                                 + np.max(t.radius[boxes]))
-                rec.reach = float(np.min(sweep_reach[boxes]))
-            span, rate = rec.span, math.sqrt(w[0] ** 2 + w[1] ** 2 + w[2] ** 2)
-            if rec.moving_joints:
-                js = raw.getJointStatesMultiDof(rec.body, rec.moving_joints, physicsClientId=cid)
-                for j, s in zip(rec.moving_joints, js):
-                    if rec.chain.joint_type[j] == pybullet.JOINT_PRISMATIC:
-                        span += abs(s[0][0])
-                    rate += math.sqrt(sum(x * x for x in s[1]))
-            if (math.sqrt(v[0] ** 2 + v[1] ** 2 + v[2] ** 2) + rate * span) * dt > rec.reach:
+        for rec in self.watched:
+            if rec.fast:
                 return False
+            if rec.base_idle is not None:
+                v, w = raw.getBaseVelocity(rec.body, physicsClientId=cid)
+                if _moves(v, w, rec.base_idle[0], dt) > rec.base_idle[1]:
+                    return False
+            if rec.link_idle:
+                states = raw.getLinkStates(rec.body, rec.link_idle[0], computeLinkVelocity=1, physicsClientId=cid)
+                for s, r, reach in zip(states, rec.link_idle[1], rec.link_idle[2]):
+                    if _moves(s[6], s[7], r, dt) > reach:
+                        return False
         for rec in self.bodies.values():
             rec.base_state = None  # not read this step: the next step's start is not known
         return True
@@ -137,18 +151,16 @@ class Articulated:
         for rec in self.bodies.values():
             pos, orn = raw.getBasePositionAndOrientation(rec.body, physicsClientId=cid)
             v, w = raw.getBaseVelocity(rec.body, physicsClientId=cid)
+            js = raw.getJointStatesMultiDof(rec.body, rec.moving_joints, physicsClientId=cid) if rec.moving_joints \
+                else ()
             rec.start = (rec.base_state[7:13], rec.qdot) if known and rec.base_state is not None else None
             rec.base_state = np.array([*pos, *orn, *v, *w], dtype=np.float64)
-            n = rec.chain.n_links
-            if n:
-                js = raw.getJointStatesMultiDof(rec.body, list(range(n)), physicsClientId=cid)
-                q = np.fromiter((x for s in js for x in s[0]), np.float64)
-                rec.qdot = np.fromiter((x for s in js for x in s[1]), np.float64)
-            else:
-                q = rec.qdot = np.zeros(0)
-            rec.motion = rec.chain.motion(rec.base_state, q, rec.qdot, dt)
+            # A fixed joint has no coordinates: the moving joints' are the flat q and qdot.
+            q = np.array([x for s in js for x in s[0]], dtype=np.float64)
+            rec.qdot = np.array([x for s in js for x in s[1]], dtype=np.float64)
+            rec.motion = _core.ChainMotion(rec.chain.core, rec.base_state, q, rec.qdot, dt)
             rec.paths = {}
-            state.rows[rec.frames] = rec.motion.frame_rows(rec.link_of_frame, dt)
+            state.rows[rec.frame_index] = rec.motion.frame_rows(rec.link_of_frame, dt)
             state.fresh.update(rec.frames)
 
     def _path(self, rec, box, dt):
@@ -167,26 +179,25 @@ class Articulated:
         return path
 
     # ------------------------------------------------------------ sweeping
-    def find(self, dt, state, sweep_reach, fit_tolerance, tolerances, penetration, stats):
+    def find(self, dt, state, fit_tolerance, tolerances, penetration, stats):
         """Sweep the fast link boxes. Returns their contacts in time order: [(touch, act at
         (None: pybullet's to resolve), (point, normal, feature), initial, pressing, body
         record, frame, partner frame, (path, partner path))]."""
         t = self.tables
         fast = []
-        for rec in self.bodies.values():
-            for f, i in rec.boxes:
-                path = self._path(rec, i, dt)
-                if 2.0 * path.travel(0.0, 1.0) > sweep_reach[i]:
-                    fast.append((rec, f, i, path))
+        for rec in self.watched:
+            moves = rec.motion.fast_boxes(rec.box_links, rec.box_X, rec.box_half, rec.box_reach)
+            rec.fast = bool(moves)
+            fast += [(rec, *rec.boxes[k], bounds) for k, _, bounds in moves]
         if not fast:
             return []
         stats.swept_boxes += len(fast)
-        slack = self._slack(state, dt)
+        slack = state.sweeper.slack(dt)  # how far a box of another frame moves
         linked = self._linked_bounds(fast, dt)
         found = []
         cache, seen = {}, set()
-        for rec, f, i, path in fast:
-            box = path.bounds(4).tolist()
+        for rec, f, i, box in fast:
+            path = self._path(rec, i, dt)
             near = overlap_query(self.cid, box, slack)
             candidates = [(t.index[key], j) for key in near if key in t.index and t.index[key] not in self.frames
                           for j in t.frame_boxes[t.index[key]]]
@@ -249,30 +260,19 @@ class Articulated:
         stats.pushes += len(pushed)
         return stops, pushed
 
-    def _slack(self, state, dt):
-        """The farthest a box of a frame not of an articulated body moves in the step
-        (partners are looked for that much beyond a fast box's bounds; the articulated
-        bodies' own boxes are paired on their swept bounds, ``_nearby``)."""
-        t, rigid = self.tables, self._rigid
-        if not len(rigid):
-            return 0.0
-        rows = state.rows[t.box_frame[rigid]]
-        v = np.linalg.norm(rows[:, 7:10], axis=1)
-        w = np.linalg.norm(rows[:, 10:13], axis=1)
-        return float(np.max((v + w * t.radius[rigid]) * dt))
-
     def _linked_bounds(self, fast, dt):
         """{box: [lo (3), hi (3)]} swept bounds of the articulated bodies' boxes that may meet a fast
         one: every box of a body with self-collision and a fast box, and, when there are
         several articulated bodies, all of theirs."""
-        bodies = {rec.body for rec, _, _, _ in fast if rec.ancestors is not None}
+        bodies = {rec.body for rec, *_ in fast if rec.ancestors is not None}
         if len(self.bodies) > 1:
             bodies = set(self.bodies)
         out = {}
         for b in bodies:
             rec = self.bodies[b]
-            for _, j in rec.boxes:
-                out[j] = self._path(rec, j, dt).bounds(4).tolist()
+            for k, _, bounds in rec.motion.fast_boxes(rec.box_links, rec.box_X, rec.box_half,
+                                                             np.full(len(rec.boxes), -np.inf)):
+                out[rec.boxes[k][1]] = bounds
         return out
 
     def _collide(self, rec, f, g):
@@ -403,6 +403,12 @@ def _goes_wrong(a, b, s_act):
         return along < 0.0
     reach = np.abs(Xa[:3, :3].T @ n) @ a.half_extents + np.abs(Xb[:3, :3].T @ n) @ b.half_extents
     return float(np.dot(axis1, n)) < 0.0 or along < 0.5 * reach
+
+
+def _moves(v, w, r, dt):
+    """How far a point at most r from a frame's origin moves in dt at velocities v, w."""
+    speed, spin = math.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]), math.sqrt(w[0] * w[0] + w[1] * w[1] + w[2] * w[2])
+    return (speed + spin * r) * dt
 
 
 def _meet(a, b):

@@ -119,6 +119,27 @@ nb::tuple link_fit_bound(const ChainMotion &motion, int link, double lo, double 
     return nb::make_tuple(b.point(r), b.rotation, b.sweep(r));
 }
 
+// [(k, move, [lo (3), hi (3)])] of the boxes (links, X_CS (n, 4, 4), half (n, 3),
+// reach (n)) that move farther than their reach: fast_boxes.
+nb::list py_fast_boxes(const ChainMotion &motion, const Ints &links, const Doubles &X_CS, const Doubles &half,
+                       const Doubles &reach) {
+    expect(links, "links", {-1});
+    const long n = long(links.shape(0));
+    expect(X_CS, "X_CS", {n, 4, 4});
+    expect(half, "half", {n, 3});
+    expect(reach, "reach", {n});
+    for (long k = 0; k < n; ++k)
+        if (links.data()[k] != -1) check_link(motion.chain(), int(links.data()[k]));
+    nb::list out;
+    for (const FastBox &b : fast_boxes(motion, size_t(n), links.data(), X_CS.data(), half.data(), reach.data())) {
+        nb::list bounds;
+        for (double x : b.lo) bounds.append(x);
+        for (double x : b.hi) bounds.append(x);
+        out.append(nb::make_tuple(b.index, b.move, bounds));
+    }
+    return out;
+}
+
 LinkBoxPath make_link_box(const ChainMotion &motion, int link, const Doubles &X_CS, const Doubles &half) {
     check_link(motion.chain(), link);
     expect(X_CS, "X_CS", {4, 4});
@@ -153,6 +174,8 @@ void bind_chain(nb::module_ &m) {
         .def("joint_positions", &joint_positions, nb::arg("tau"))
         .def("frame_rows", &frame_rows, nb::arg("links"), nb::arg("dt"),
              "(n, 13) the links' (-1: base) poses after the step and the chords of their steps as velocities.")
+        .def("fast_boxes", &py_fast_boxes, nb::arg("links"), nb::arg("X_CS"), nb::arg("half"), nb::arg("reach"),
+             "[(k, move, [lo (3), hi (3)])] of the boxes on links (-1: base) that move farther than their reach.")
         .def("fit", &link_fit, nb::arg("link"), nb::arg("lo"), nb::arg("hi"), nb::arg("r") = 0.0)
         .def("fit_bound", &link_fit_bound, nb::arg("link"), nb::arg("lo"), nb::arg("hi"), nb::arg("r") = 0.0);
     nb::class_<LinkBoxPath, BoxPath>(m, "LinkBoxPath", "A box fixed to a link, on the link's path.")

@@ -270,6 +270,8 @@ void bind_world(nb::module_ &m) {
         .def("put_twists", &put_twists, nb::arg("frames"), nb::arg("twists"))
         .def("put_poses", &put_poses, nb::arg("frames"), nb::arg("poses"))
         .def("fast", &sweeper_fast, nb::arg("dt"), nb::arg("frames") = nb::none(), nb::arg("twists") = nb::none())
+        .def("slack", &Sweeper::slack, nb::arg("dt"),
+             "The farthest a box with a finite sweep reach moves in a step of dt (m).")
         .def("rows", &sweeper_rows, nb::arg("dt"), nb::arg("boxes"))
         .def("touches", &sweeper_touches, nb::arg("dt"), nb::arg("boxes"), nb::arg("n_moving"),
              nb::arg("all_others"), nb::arg("fit_tolerance"), nb::arg("tolerances"), nb::arg("penetration"),

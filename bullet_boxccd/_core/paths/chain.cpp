@@ -554,4 +554,35 @@ int LinkBoxPath::pieces(double fit_tolerance) const {
     return n;
 }
 
+std::vector<FastBox> fast_boxes(const ChainMotion &motion, size_t n, const int64_t *links, const double *X_CS,
+                                const double *half, const double *reach) {
+    std::vector<FastBox> out;
+    const double dt = motion.dt();
+    double chord[13];
+    int64_t chord_link = -2;
+    for (size_t k = 0; k < n; ++k) {
+        const double *X = X_CS + 16 * k, *h = half + 3 * k;
+        // How far the box's points go from where the step began to where it ended:
+        // its frame's chord (the path's own bulge is of second order in the turn).
+        if (links[k] != chord_link) {
+            chord_link = links[k];
+            motion.chord_state(int(chord_link), dt, chord);
+        }
+        const double t[3] = {X[3], X[7], X[11]};
+        const double move = step_reach(chord, dt, norm3(t) + norm3(h));
+        if (!(move > reach[k])) continue;
+        FastBox b{int64_t(k), move, {}, {}};
+        const int pieces = move < std::min({h[0], h[1], h[2]}) ? 1 : 4;
+        if (links[k] == -1) {
+            double row[kPathBoxSize];
+            path_row(motion.state(), dt, X, h, row);
+            path_bounds(RowBoxPath(row), pieces, b.lo, b.hi);
+        } else {
+            path_bounds(LinkBoxPath(motion, int(links[k]), X, h), pieces, b.lo, b.hi);
+        }
+        out.push_back(b);
+    }
+    return out;
+}
+
 }  // namespace boxccd

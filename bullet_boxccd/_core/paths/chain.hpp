@@ -104,6 +104,8 @@ class ChainMotion {
     ChainMotion(const Chain &chain, const double *state, const double *q, const double *qdot, double dt);
 
     const Chain &chain() const { return *chain_; }
+    const double *state() const { return state_; }  // the base's frame state after the step (13)
+    double dt() const { return dt_; }
     // The base's centre-of-mass frame at tau: position (3), quaternion x y z w (4).
     void base_pose(double tau, double *pose) const;
     // Link `link`'s centre-of-mass frame at tau (position, quaternion: 7).
@@ -171,5 +173,20 @@ class LinkBoxPath : public BoxPath {
     double X_CS_[16], half_[3];
     double reach_;  // the farthest point of the box from the link frame's origin
 };
+
+// A body's boxes that move farther than their sweep reach over the step: box k
+// sits on link links[k] (-1: the base, on the free-frame path of the motion's
+// base state) at X_CS + 16 k with half extents half + 3 k. For each box whose
+// points move more than reach[k] from the step's start to its end (step_reach
+// of its frame's chord_state), its index k, that move and its world bounds over
+// the step (path_bounds: one piece when it moves less than its smallest half
+// extent, else four).
+struct FastBox {
+    int64_t index;
+    double move;
+    double lo[3], hi[3];
+};
+std::vector<FastBox> fast_boxes(const ChainMotion &motion, size_t n, const int64_t *links, const double *X_CS,
+                                const double *half, const double *reach);
 
 }  // namespace boxccd

@@ -116,6 +116,16 @@ Sweeper::Fast Sweeper::fast(double dt) const {
     return out;
 }
 
+double Sweeper::slack(double dt) const {
+    double out = 0.0;
+    for (size_t i = 0; i < n_; ++i) {
+        if (!std::isfinite(sweep_reach_[i])) continue;
+        const double r = step_reach(state_.data() + kFrameStateSize * box_frame_[i], dt, radius_[i]);
+        if (std::isfinite(r)) out = std::fmax(out, r);
+    }
+    return out;
+}
+
 void Sweeper::check_boxes(const std::vector<int64_t> &boxes) const {
     for (const int64_t b : boxes) check_index(b, n_, "box");
 }

@@ -104,6 +104,10 @@ class Sweeper {
     };
     Fast fast(double dt) const;
 
+    // The farthest a box with a finite sweep reach moves in a step of dt (the boxes
+    // given an infinite reach are swept elsewhere, on paths of their own).
+    double slack(double dt) const;
+
     // Throws std::out_of_range for a box index out of range.
     void check_boxes(const std::vector<int64_t> &boxes) const;
 
