@@ -230,6 +230,13 @@ J(c1).pd_control = False
 p.setJointMotorControlArray(arm, [0, 1], p.PD_CONTROL, [0, 0], [0, 0], [10, 10], [0.1, 0.1], [1, 1], c1)
 assert J(c1).pd_control and not J(c0).pd_control
 p.setJointMotorControl2(bodyUniqueId=arm, jointIndex=0, controlMode=p.VELOCITY_CONTROL, physicsClientId=c1)
+# Every argument positional: a torque is journaled (for the client named last), a position motor is not.
+p.setJointMotorControl2(arm, 0, p.TORQUE_CONTROL, 0, 0, 5.0, 0.1, 1.0, 10, c1)
+assert J(c1).impulses[-1][0] == "call" and J(c1).impulses[-1][1][1]["force"] == 5.0 and not J(c0).impulses
+held = list(J(c1).impulses)
+p.setJointMotorControl2(arm, 0, p.POSITION_CONTROL, 0.3, 0, 5.0, 0.1, 1.0, 10, c1)
+p.setJointMotorControlArray(arm, [0, 1], controlMode=p.VELOCITY_CONTROL, targetVelocities=[1, 1], physicsClientId=c1)
+assert J(c1).impulses == held and not J(c0).impulses
 
 # loadSDF, loadMJCF and removeBody with the client id positional.
 sdf = p.loadSDF(os.path.join(data, "stadium.sdf"), 0, 1.0, c1)

@@ -721,11 +721,29 @@ WRAPPED = {
 raw = SimpleNamespace()  # pybullet's own functions, for the plugin's calls
 
 
+# Motor modes a motor call notes nothing for (position and velocity motors are
+# constraints pybullet keeps across steps). Every motor function takes its mode third
+# (``_MOTOR2``, ``_MOTOR_ARRAY``, ``SIGNATURES``): a call in one of these modes is
+# passed on without binding its arguments, the per-step call of most robot code.
+_SILENT_MODES = frozenset((pybullet.POSITION_CONTROL, pybullet.VELOCITY_CONTROL))
+
+
+def _silent_motor(args, kwargs) -> bool:
+    mode = args[2] if len(args) > 2 else kwargs.get("controlMode")
+    try:
+        return mode in _SILENT_MODES
+    except TypeError:  # unhashable: pybullet's parser refused it already, or bind will say
+        return False
+
+
 def _wrap(name, original, note):
+    silent = _silent_motor if name.startswith("setJointMotorControl") else None
+
     def wrapper(*args, **kwargs):
         result = original(*args, **kwargs)
-        a = bind(name, args, kwargs)
-        note(_cid(a), a, result)
+        if silent is None or not silent(args, kwargs):
+            a = bind(name, args, kwargs)
+            note(_cid(a), a, result)
         return result
 
     return _core.as_builtin(wrapper, name, original.__doc__ or "")
