@@ -135,6 +135,7 @@ class Record:
     dones: list = field(default_factory=list)
     poses: list = field(default_factory=list)  # per env step / tick: every body's and link's frame (float64)
     step_ns: list = field(default_factory=list)  # per routed stepSimulation: wall time (ns)
+    env_ns: list = field(default_factory=list)  # per env.step (envs): wall time (ns), whatever the variant
     step_swept: list = field(default_factory=list)  # per routed stepSimulation (ccd): boxes it swept
     boxccd_warnings: list = field(default_factory=list)  # (message, filename:lineno)
     other_warnings: list = field(default_factory=list)  # from bullet_boxccd, not BoxCCDWarning
@@ -313,7 +314,10 @@ def run_env(record, spec, variant, steps, seed, profiler=None):
     rng = np.random.default_rng(seed)
     record.ended = "steps"
     for i in range(steps):
-        obs, _, done, _ = env.step(sample(env.action_space, rng))
+        action = sample(env.action_space, rng)
+        t0 = time.perf_counter_ns()
+        obs, _, done, _ = env.step(action)
+        record.env_ns.append(time.perf_counter_ns() - t0)
         record.env_steps += 1
         record.obs.append(np.asarray(obs, dtype=np.float64).ravel())
         record.dones.append(bool(done))

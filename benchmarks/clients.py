@@ -18,8 +18,9 @@ observations (envs) and of all bodies' base poses and link frames (both), with t
 first step that differs; BoxCCD's rewinds, partial steps, contacts and swept boxes; every
 BoxCCDWarning; the median wall time per stepSimulation call, plain and BoxCCD, and
 their ratio (median over the seeds of each seeded run's ratio of medians), and the same ratio
-over the steps where BoxCCD swept no box (nothing fast); BoxCCD's own
-breakdown (``ccd.stats.seconds`` per step).
+over the steps where BoxCCD swept no box (nothing fast); for envs, the median env.step
+with pybullet alone (bare) and with BoxCCD (hooks and BoxCCD steps: what an RL loop
+pays); BoxCCD's own breakdown (``ccd.stats.seconds`` per step).
 
     python benchmarks/clients.py            # 1000 env steps (fewer where noted), 3 seeds
     python benchmarks/clients.py --quick    # the short horizons of CLIENTS, 1 seed
@@ -55,6 +56,7 @@ def run_client(name, steps, seeds, timeout, profile_dir=None, workdir=None, log=
     row = {"client": name, "kind": "env" if isinstance(spec, Env) else "script", "seeds": len(seeds),
            "steps": steps, "errors": [], "warnings": {}, "first_diff": "", "plain_vs_bare": 0.0}
     ratios, plain_med, ccd_med, sim_steps, ccd_ns = [], [], [], [], []
+    env_bare, env_ccd, env_ratios = [], [], []
     quiet_ratios, quiet_share, quiet_plain, quiet_ccd = [], [], [], []
     totals = {k: 0 for k in ("rewinds", "partial_steps", "contacts", "swept_boxes", "tracked_boxes", "steps",
                              "candidate_pairs", "pushes", "rediscoveries")}
@@ -101,6 +103,11 @@ def run_client(name, steps, seeds, timeout, profile_dir=None, workdir=None, log=
             ccd_med.append(cm)
             ratios.append(cm / pm)
         ccd_ns += ccd.get("step_ns", [])
+        if bare.get("env_ns") and ccd.get("env_ns"):
+            bm, cm = statistics.median(bare["env_ns"]) / 1e3, statistics.median(ccd["env_ns"]) / 1e3
+            env_bare.append(bm)
+            env_ccd.append(cm)
+            env_ratios.append(cm / bm)
         q = _quiet(plain, ccd)
         if q is not None:
             quiet_share.append(q[0])
@@ -120,6 +127,9 @@ def run_client(name, steps, seeds, timeout, profile_dir=None, workdir=None, log=
         quiet_ccd_us=statistics.median(quiet_ccd) if quiet_ccd else float("nan"),
         quiet_ratio=statistics.median(quiet_ratios) if quiet_ratios else float("nan"),
         ccd_mean_us=float(np.mean(ccd_ns)) / 1e3 if ccd_ns else float("nan"),
+        env_bare_us=statistics.median(env_bare) if env_bare else float("nan"),
+        env_ccd_us=statistics.median(env_ccd) if env_ccd else float("nan"),
+        env_ratio=statistics.median(env_ratios) if env_ratios else float("nan"),
         construct_ms=1e3 * statistics.median(construct) if construct else float("nan"),
         **totals, **{f"{k}_us": 1e6 * v / n for k, v in seconds.items()})
     return row
@@ -155,7 +165,7 @@ def _fmt(x, digits=1):
 def table(rows):
     head = ["client", "steps", "max abs obs diff", "max abs pose diff", "first diff", "rewinds", "partial",
             "contacts", "swept", "warnings", "plain us/step", "BoxCCD us/step", "ratio", "steps sweeping nothing",
-            "ratio there"]
+            "ratio there", "env.step us: pybullet alone", "with BoxCCD", "ratio"]
     lines = ["| " + " | ".join(head) + " |", "|" + "|".join("---" for _ in head) + "|"]
     for r in rows:
         steps = f"{r.get('env_steps', 0)}" + (f" ({r['sim_steps']})" if r["sim_steps"] != r.get("env_steps") else "")
@@ -166,7 +176,8 @@ def table(rows):
             str(r["rewinds"]), str(r["partial_steps"]), str(r["contacts"]), str(r["swept_boxes"]),
             str(len(r["warnings"])), _fmt(r["plain_us"]), _fmt(r["ccd_us"]), _fmt(r["ratio"], 2),
             f"{r['quiet_share']:.0%}" if r["quiet_share"] == r["quiet_share"] else "-",
-            _fmt(r["quiet_ratio"], 2)]) + " |")
+            _fmt(r["quiet_ratio"], 2), _fmt(r["env_bare_us"]), _fmt(r["env_ccd_us"]), _fmt(r["env_ratio"], 2)])
+            + " |")
     return "\n".join(lines)
 
 
@@ -188,7 +199,8 @@ def breakdown(rows):
 CSV_FIELDS = ["client", "kind", "seeds", "env_steps", "sim_steps", "obs_diff", "pose_diff", "first_diff",
               "plain_vs_bare", "rewinds", "partial_steps", "contacts", "swept_boxes", "tracked_boxes",
               "candidate_pairs", "pushes", "rediscoveries", "plain_us", "ccd_us", "ratio", "quiet_share",
-              "quiet_plain_us", "quiet_ccd_us", "quiet_ratio", "ccd_mean_us", "construct_ms"] + \
+              "quiet_plain_us", "quiet_ccd_us", "quiet_ratio", "ccd_mean_us", "env_bare_us", "env_ccd_us", "env_ratio",
+              "construct_ms"] + \
              [f"{k}_us" for k in PHASES] + ["warnings", "errors"]
 
 
@@ -286,7 +298,8 @@ def main(argv=None):
     print("\nsteps: env steps (script: steps), stepSimulation calls in brackets where more; rewinds, partial, "
           "contacts, swept (boxes swept): totals over the seeds; diffs: BoxCCD against pybullet alone, the largest "
           "over the seeds; us/step: median per stepSimulation call; ratio there: over the steps where BoxCCD swept "
-          "no box (their share in the column before)")
+          "no box (their share in the column before); env.step us: the median env.step, bullet_boxccd never imported "
+          "against its hooks installed and every stepSimulation a BoxCCD step (what an RL loop pays)")
     print()
     print("BoxCCD's own time per stepSimulation call (us: ccd.stats.seconds / calls, and the mean wall time of "
           "BoxCCD.step; a step in a world where nothing changed is not timed by the stats until something in it is "
