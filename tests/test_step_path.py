@@ -248,9 +248,9 @@ def test_sweeper_touches_is_its_parts(all_others):
     assert touched >= 5
 
 
-def reference_first_depth(boxes, tau_from, target):
+def reference_first_depth(pair, tau_from, target):
     """first_depth without skipping: every look-ahead sample, then bisection."""
-    depth = lambda t: _core.path_separation(boxes, t)[0]  # noqa: E731
+    depth = lambda t: _core.paths_separation(*pair, t)[0]  # noqa: E731
     lo, hi = tau_from, None
     for k in range(48, -1, -1):
         t = tau_from + (1.0 - tau_from) * 2.0 ** -k
@@ -282,8 +282,9 @@ def test_first_depth_skips_only_samples_that_cannot_reach_the_target():
         states[:, :3] *= 0.1
         boxes = rows_of(states, [(0, *random_box(rng)), (1, *random_box(rng))])
         tau_from = float(rng.choice([0.0, rng.uniform(0, 0.9)]))
-        target = max(_core.path_separation(boxes, tau_from)[0], 0.0) + rng.uniform(1e-4, 0.02)
-        got, want = _core.first_depth(boxes, tau_from, target), reference_first_depth(boxes, tau_from, target)
+        pair = _core.RowBoxPath(boxes[0]), _core.RowBoxPath(boxes[1])
+        target = max(_core.paths_separation(*pair, tau_from)[0], 0.0) + rng.uniform(1e-4, 0.02)
+        got, want = _core.paths_first_depth(*pair, tau_from, target), reference_first_depth(pair, tau_from, target)
         assert (np.isnan(got) and np.isnan(want)) or got == want
         found += not np.isnan(got)
         col = {k: slice(*v) for k, v in _core.layouts()["path_row"].items()}
@@ -291,7 +292,7 @@ def test_first_depth_skips_only_samples_that_cannot_reach_the_target():
                  for b in boxes]
         travel = sum(np.linalg.norm(b[col["displacement"]]) + abs(b[col["angle"]][0]) * r for b, r in zip(boxes, reach))
         taus = np.linspace(0, 1, 101)
-        depth = np.maximum([_core.path_separation(boxes, t)[0] for t in taus], 0.0)
+        depth = np.maximum([_core.paths_separation(*pair, t)[0] for t in taus], 0.0)
         assert np.all(np.abs(np.diff(depth)) <= travel * np.diff(taus) + 1e-12)
     assert found >= 20
 

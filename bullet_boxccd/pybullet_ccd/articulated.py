@@ -80,7 +80,7 @@ class Articulated:
     def __init__(self, cid, tables, self_collision, sweep_reach, warn):
         """``self_collision``: {body: URDF_USE_SELF_COLLISION* bits} of the bodies whose links
         collide with each other; ``sweep_reach``: (boxes,) a box moving farther in a step is swept."""
-        self.cid, self.tables = cid, tables
+        self.cid, self.tables, self.sweep_reach = cid, tables, sweep_reach
         self.bodies = {}
         for b, frames in tables.frames_of.items():
             if not any(tables.kind[f] == LINK for f in frames):
@@ -193,22 +193,24 @@ class Articulated:
             return []
         stats.swept_boxes += len(fast)
         slack = state.sweeper.slack(dt)  # how far a box of another frame moves
-        linked = self._linked_bounds(fast, dt)
-        found = []
+        linked = self._linked_pairs(fast, dt)
+        found, reach = [], self.sweep_reach
         cache, seen = {}, set()
-        for rec, f, i, box in fast:
+        for k, (rec, f, i, box) in enumerate(fast):
             path = self._path(rec, i, dt)
             near = overlap_query(self.cid, box, slack)
             candidates = [(t.index[key], j) for key in near if key in t.index and t.index[key] not in self.frames
                           for j in t.frame_boxes[t.index[key]]]
-            candidates += [(int(t.box_frame[j]), j) for j, other_box in linked.items() if _meet(box, other_box)]
+            candidates += linked.get(k, ())
             for g, j in candidates:
                 if g == f or (min(i, j), max(i, j)) in seen or not self._collide(rec, f, g):
                     continue
                 seen.add((min(i, j), max(i, j)))
                 other = self._partner(j, g, state, dt, cache)
-                if j not in linked and not _meet(box, other.bounds(1).tolist()):
+                if g not in self.frames and not _meet(box, other.bounds(1).tolist()):
                     continue  # their swept bounds do not meet
+                if _core.paths_relative_move(path, other) <= min(reach[i], reach[j]):
+                    continue  # slow against each other (a link and its neighbour, a foot and the ground it rests on)
                 hit = self._judge(path, other, fit_tolerance, tolerances, penetration, stats)
                 if hit is not None:
                     found.append((*hit, rec, f, g, (path, other)))
@@ -260,19 +262,31 @@ class Articulated:
         stats.pushes += len(pushed)
         return stops, pushed
 
-    def _linked_bounds(self, fast, dt):
-        """{box: [lo (3), hi (3)]} swept bounds of the articulated bodies' boxes that may meet a fast
-        one: every box of a body with self-collision and a fast box, and, when there are
-        several articulated bodies, all of theirs."""
+    def _linked_pairs(self, fast, dt):
+        """{k: [(frame, box)]}: for the k-th fast box, the articulated bodies' boxes whose swept
+        bounds meet its own (pybullet's filters and a body's own boxes, unless it collides
+        with itself, ruled out in the core): every box of a body with self-collision and a
+        fast box, and, when there are several articulated bodies, all of theirs."""
         bodies = {rec.body for rec, *_ in fast if rec.ancestors is not None}
         if len(self.bodies) > 1:
             bodies = set(self.bodies)
-        out = {}
+        if not bodies:
+            return {}
+        boxes, bounds = [i for _, _, i, _ in fast], [b for *_, b in fast]
         for b in bodies:
             rec = self.bodies[b]
-            for k, _, bounds in rec.motion.fast_boxes(rec.box_links, rec.box_X, rec.box_half,
-                                                             np.full(len(rec.boxes), -np.inf)):
-                out[rec.boxes[k][1]] = bounds
+            for k, _, box in rec.motion.fast_boxes(rec.box_links, rec.box_X, rec.box_half,
+                                                   np.full(len(rec.boxes), -np.inf)):
+                boxes.append(rec.boxes[k][1])
+                bounds.append(box)
+        t = self.tables
+        frame = t.box_frame[boxes]
+        f = t.filters
+        pairs = _core.candidate_pairs(np.array(bounds, dtype=np.float64), len(fast), frame, t.body, t.self_collides,
+                                      f.group, f.mask, f.mode)
+        out = {}
+        for k, m in pairs.tolist():
+            out.setdefault(k, []).append((int(frame[m]), boxes[m]))
         return out
 
     def _collide(self, rec, f, g):

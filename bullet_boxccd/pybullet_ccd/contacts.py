@@ -372,14 +372,15 @@ class Contacts:
             action = "back" if back and not again else "stop"
         else:
             return info
-        end_depth = float(_core.path_depth(w, np.ones(1))[0])
+        pair = _core.RowBoxPath(w[0]), _core.RowBoxPath(w[1])
+        end_depth = _core.paths_depth(*pair, 1.0)
         if initial:
             # Touching as the window began: pybullet's solver saw it. Acted on only if it
             # ends deeper by more than depth_tolerance (the next corner of a turning box
             # striking, or a body driven through), from the time it presses in by more than
             # a creep (a box pivoting on a corner sinks that corner slowly).
             thin = min(w[0, PATH_ROW["half_extents"]].min(), w[1, PATH_ROW["half_extents"]].min())
-            d0 = float(_core.path_depth(w, np.zeros(1))[0])
+            d0 = _core.paths_depth(*pair, 0.0)
             target = max(d0, 0.0) + max(self.penetration, min(CREEP * thin, self.depth_tolerance))
         else:
             target = self.penetration
@@ -387,7 +388,7 @@ class Contacts:
         wrong = deeper > self.depth_tolerance or _goes_wrong(w, s_touch, c, target)
         if action != "push" and not wrong:
             return info
-        s_act = _core.first_depth(w, s_touch, target)
+        s_act = _core.paths_first_depth(*pair, s_touch, target)
         if np.isnan(s_act):
             if action != "push":  # never as deep as that: a graze
                 return info
@@ -530,9 +531,10 @@ def _goes_wrong(w, s_touch, contact, target):
     through, or struck and left)."""
     if not np.all(np.isfinite(contact.normal)):
         return True
-    depth, axis = _core.path_separation(w, 1.0)
+    pair = _core.RowBoxPath(w[0]), _core.RowBoxPath(w[1])
+    depth, axis = _core.paths_separation(*pair, 1.0)
     if depth <= 0.0:
-        return not np.isnan(_core.first_depth(w, s_touch, target))
+        return not np.isnan(_core.paths_first_depth(*pair, s_touch, target))
     n = _normal_at_end(w, s_touch, contact)
     (ca, Ra, ha), (cb, Rb, hb) = (_box_at_end(row) for row in w)
     reach = np.abs(Ra.T @ n) @ ha + np.abs(Rb.T @ n) @ hb

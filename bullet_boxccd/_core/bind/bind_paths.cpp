@@ -20,29 +20,11 @@ using PathBoxes = In<2, kPathBoxSize>;
 using PathRows = In<-1, kPathBoxSize>;
 
 // ------------------------------------------------------------------ path rows
-Out<double, -1> py_path_depth(const PathBoxes &boxes, const In<-1> &taus) {
-    const size_t n = taus.shape(0);
-    auto [out, owner] = new_buffer<double>(n);
-    for (size_t i = 0; i < n; ++i) out[i] = path_depth(boxes.data(), boxes.data() + kPathBoxSize, taus.data()[i]);
-    return Out<double, -1>(out, {n}, owner);
-}
-
 Out<double, -1, 6> py_swept_bounds(const PathRows &boxes) {
     const size_t n = boxes.shape(0);
     auto [out, owner] = new_buffer<double>(6 * n);
     for (size_t i = 0; i < n; ++i) swept_bounds(boxes.data() + kPathBoxSize * i, out + 6 * i, out + 6 * i + 3);
     return Out<double, -1, 6>(out, {n, 6}, owner);
-}
-
-// (depth, axis (3,)) of path_separation at tau.
-nb::tuple py_path_separation(const PathBoxes &boxes, double tau) {
-    auto [out, owner] = new_buffer<double>(3);
-    const double depth = path_separation(boxes.data(), boxes.data() + kPathBoxSize, tau, out);
-    return nb::make_tuple(depth, Out<double, 3>(out, {3}, owner));
-}
-
-double py_first_depth(const PathBoxes &boxes, double tau_from, double target) {
-    return first_depth(boxes.data(), boxes.data() + kPathBoxSize, tau_from, target);
 }
 
 // (n, 4, 4) poses of path rows' boxes at taus (one each).
@@ -210,9 +192,6 @@ double paths_first_depth(const BoxPath &a, const BoxPath &b, double from, double
 void bind_paths(nb::module_ &m) {
     m.def("layouts", &layouts);
     m.def("bullet_step_angle", &bullet_step_angle, nb::arg("speed"), nb::arg("dt"));
-    m.def("path_depth", &py_path_depth, nb::arg("boxes"), nb::arg("taus"));
-    m.def("path_separation", &py_path_separation, nb::arg("boxes"), nb::arg("tau"));
-    m.def("first_depth", &py_first_depth, nb::arg("boxes"), nb::arg("tau_from"), nb::arg("target"));
     m.def("swept_bounds", &py_swept_bounds, nb::arg("boxes"));
     m.def("row_poses", &py_row_poses, nb::arg("rows"), nb::arg("taus"));
     m.def("window_rows", &py_window_rows, nb::arg("rows"), nb::arg("lo"), nb::arg("hi"));
@@ -236,6 +215,8 @@ void bind_paths(nb::module_ &m) {
     m.def("paths_contact", &py_paths_contact, nb::arg("a"), nb::arg("b"), nb::arg("fit_tolerance"),
           nb::arg("tolerances"));
     m.def("paths_depth", &paths_depth, nb::arg("a"), nb::arg("b"), nb::arg("tau"));
+    m.def("paths_relative_move", &relative_move, nb::arg("a"), nb::arg("b"),
+          "How far the smaller box's corners move in the other's frame from the step's start to its end.");
     m.def("paths_separation", &paths_separation, nb::arg("a"), nb::arg("b"), nb::arg("tau"));
     m.def("paths_first_depth", &paths_first_depth, nb::arg("a"), nb::arg("b"), nb::arg("from_tau"), nb::arg("target"));
 }

@@ -46,45 +46,92 @@ double path_depth(const BoxPath &a, const BoxPath &b, double tau) {
     return pose_depth(X_WA, a.half_extents(), X_WB, b.half_extents());
 }
 
-double path_separation(const BoxPath &a, const BoxPath &b, double tau, double *axis) {
+double path_separation(const BoxPath &a, const BoxPath &b, double tau, double *axis, double floor) {
     double X_WA[16], X_WB[16];
     a.pose(tau, X_WA);
     b.pose(tau, X_WB);
-    return pose_separation(X_WA, a.half_extents(), X_WB, b.half_extents(), axis);
+    return pose_separation(X_WA, a.half_extents(), X_WB, b.half_extents(), axis, floor);
 }
 
-double first_depth(const BoxPath &a, const BoxPath &b, double from, double target, int budget) {
-    if (!a.finite() || !b.finite() || !(from >= 0.0 && from <= 1.0) || std::isnan(target)) return kNaN;
-    if (path_depth(a, b, from) >= target) return from;
-    // Depth-first over halved pieces, earliest first: a piece is ruled out when the
-    // depth at its middle plus both boxes' travel over it stays below target. Once a
-    // piece no wider than kDepthNarrow reaches the target at its middle, the crossing
-    // between its start and its middle is found by bisection (constants.hpp).
-    struct Piece {
-        double lo, hi;
-    };
-    std::vector<Piece> stack{{from, 1.0}};
-    while (!stack.empty()) {
-        const Piece p = stack.back();
-        stack.pop_back();
-        if (--budget < 0) return p.lo;
-        const double mid = 0.5 * (p.lo + p.hi);
-        const double depth = path_depth(a, b, mid);
-        if (depth >= target && p.hi - p.lo <= kDepthNarrow) {
-            double lo = p.lo, hi = mid;
-            while (hi - lo > kDepthPieceWidth) {
-                const double m = 0.5 * (lo + hi);
-                if (m <= lo || m >= hi) break;
-                (path_depth(a, b, m) >= target ? hi : lo) = m;
+double relative_move(const BoxPath &a, const BoxPath &b) {
+    const double *ha = a.half_extents(), *hb = b.half_extents();
+    const bool a_small = std::max({ha[0], ha[1], ha[2]}) < std::max({hb[0], hb[1], hb[2]});
+    const BoxPath &small = a_small ? a : b, &large = a_small ? b : a;
+    const double *h = small.half_extents();
+    // The small box's frame in the large one's at tau: inverse(X_L) X_S (rigid).
+    const auto relative = [&](double tau, double *R) {
+        double L[16], S[16];
+        large.pose(tau, L);
+        small.pose(tau, S);
+        for (int i = 0; i < 3; ++i)
+            for (int j = 0; j < 4; ++j) {
+                double x = 0.0;
+                for (int k = 0; k < 3; ++k) x += L[4 * k + i] * (S[4 * k + j] - (j == 3 ? L[4 * k + 3] : 0.0));
+                R[4 * i + j] = x;
             }
-            return hi;
+    };
+    double R0[12], R1[12];
+    relative(0.0, R0);
+    relative(1.0, R1);
+    double out = 0.0;
+    for (int corner = 0; corner < 8; ++corner) {
+        const double c[3] = {corner & 1 ? h[0] : -h[0], corner & 2 ? h[1] : -h[1], corner & 4 ? h[2] : -h[2]};
+        double d2 = 0.0;
+        for (int i = 0; i < 3; ++i) {
+            double d = R1[4 * i + 3] - R0[4 * i + 3];
+            for (int k = 0; k < 3; ++k) d += (R1[4 * i + k] - R0[4 * i + k]) * c[k];
+            d2 += d * d;
         }
-        if (p.hi - p.lo <= kDepthPieceWidth) continue;
-        if (depth + a.travel(p.lo, p.hi) + b.travel(p.lo, p.hi) < target) continue;
-        stack.push_back({mid, p.hi});
-        stack.push_back({p.lo, mid});
+        out = std::fmax(out, std::sqrt(d2));
     }
-    return kNaN;
+    return out;
+}
+
+double first_depth(const BoxPath &a, const BoxPath &b, double from, double target, double depth_from) {
+    if (!a.finite() || !b.finite() || !(from >= 0.0 && from <= 1.0) || std::isnan(target)) return kNaN;
+    const double span = 1.0 - from;
+    // Whether the depth at tau reaches target, stopping at the first axis that says no.
+    const auto reaches = [&](double tau) { return path_separation(a, b, tau, nullptr, target) >= target; };
+    if (std::isnan(depth_from)) depth_from = path_depth(a, b, from);
+    const double need = target - std::fmax(depth_from, 0.0);
+    // A point gets at most twice its travel about the middle from where it was at `from`.
+    const double speed = 2.0 * (a.travel(from, 1.0) + b.travel(from, 1.0));
+    // The first sample taken: the largest k <= kDepthLookAhead with speed 2^-k >= need (k = 0 is
+    // always taken; with speed not a number, every k is).
+    int k0 = kDepthLookAhead;
+    if (need > 0.0 && speed >= 0.0) {
+        const double x = speed / need;
+        int e = kDepthLookAhead + 1;
+        if (std::isfinite(x)) std::frexp(x, &e);  // x = m 2^e, m in [0.5, 1): floor(log2 x) = e - 1
+        k0 = std::clamp(e - 1, 0, kDepthLookAhead);
+        while (k0 < kDepthLookAhead && !(std::ldexp(speed, -(k0 + 1)) < need)) ++k0;  // the division's rounding
+        while (k0 > 0 && std::ldexp(speed, -k0) < need) --k0;
+    }
+    double lo = k0 < kDepthLookAhead ? from + std::ldexp(span, -(k0 + 1)) : from, hi = kNaN;
+    for (double step = std::ldexp(span, -k0);; step *= 2.0) {  // 2^-k of the rest of the step, k = k0 .. 0
+        const double t = from + step;
+        if (reaches(t)) {
+            hi = t;
+            break;
+        }
+        lo = t;
+        if (!(step < span)) break;
+    }
+    if (std::isnan(hi)) return hi;
+    for (int it = 0; it < kMaxDepthHalvings && hi - lo > kDepthWidth; ++it) {
+        const double mid = 0.5 * (lo + hi);
+        if (mid <= lo || mid >= hi) break;
+        (reaches(mid) ? hi : lo) = mid;
+    }
+    return hi;
+}
+
+bool presses_in(const BoxPath &a, const BoxPath &b, double penetration, double creep, double depth0) {
+    const double *ha = a.half_extents(), *hb = b.half_extents();
+    const double thin = std::min({ha[0], ha[1], ha[2], hb[0], hb[1], hb[2]});
+    if (std::isnan(depth0)) depth0 = path_depth(a, b, 0.0);
+    const double target = std::max(depth0, 0.0) + std::max(penetration, creep * thin);
+    return !std::isnan(first_depth(a, b, 0.0, target, depth0));
 }
 
 void path_bounds(const BoxPath &path, int n, double *lo, double *hi) {

@@ -37,7 +37,7 @@ class BoxPath {
     // Whether every number the path holds is finite (one that is not has no touch).
     virtual bool finite() const = 0;
     // How far any point of the box can be, over [lo, hi], from where it is at
-    // (lo + hi) / 2 (a length, world): what first_depth's search prunes with.
+    // (lo + hi) / 2 (a length, world): what first_depth's look-ahead skips with.
     virtual double travel(double lo, double hi) const = 0;
 };
 
@@ -62,17 +62,33 @@ class RowBoxPath : public BoxPath {
 // pose_depth of two paths' boxes at tau.
 double path_depth(const BoxPath &a, const BoxPath &b, double tau);
 
-// pose_separation of two paths' boxes at tau (axis: (3,)).
-double path_separation(const BoxPath &a, const BoxPath &b, double tau, double *axis);
+// pose_separation of two paths' boxes at tau (axis: (3,) or null; floor: stop at
+// the first axis whose overlap is below it, as pose_separation).
+double path_separation(const BoxPath &a, const BoxPath &b, double tau, double *axis,
+                       double floor = -std::numeric_limits<double>::infinity());
 
-// The first tau in [from, 1] at which the boxes overlap by at least target
-// (path_depth >= target), to about 1e-13 of the step; NaN if they never do. The
-// overlap depth moves by at most the sum of the boxes' points' travel, so a piece
-// whose middle is too shallow by more than that is skipped, and the others are
-// halved, earliest first, down to 1/256 of the step, where the crossing is
-// bisected (at most `budget` pieces; past it the start of the first piece not
-// ruled out is returned: early, never late).
-double first_depth(const BoxPath &a, const BoxPath &b, double from, double target, int budget = 4096);
+// How far the corners of the box with the smaller largest half extent move in the
+// other box's frame from the step's start (tau 0) to its end (tau 1): the pair's
+// relative move over the step's chord.
+double relative_move(const BoxPath &a, const BoxPath &b);
+
+// The first tau in (from, 1] at which the boxes' depth reaches `target`
+// (path_depth >= target), NaN if it does not. A geometric look-ahead (offsets
+// 2^-k of the rest of the step, k = kDepthLookAhead .. 0) finds the first sample
+// past the target even for a fast pass through a thin wall; bisection then
+// brackets the crossing to kDepthWidth and returns its upper end. Samples nearer
+// `from` than the boxes' travel lets the depth grow to the target are skipped
+// (the overlap depth moves no faster than the boxes' points). depth_from: the
+// depth at `from`, if known (NaN: computed).
+double first_depth(const BoxPath &a, const BoxPath &b, double from, double target,
+                   double depth_from = std::numeric_limits<double>::quiet_NaN());
+
+// Whether two boxes that touch at the start of the step press in during it: their
+// overlap grows past what it was at the start by penetration, and by creep times
+// the smaller half extent of the two (less is the creep of a contact pybullet
+// holds). depth0: the depth at the start, if known.
+bool presses_in(const BoxPath &a, const BoxPath &b, double penetration, double creep,
+                double depth0 = std::numeric_limits<double>::quiet_NaN());
 
 // Bounds (lo, hi: world) of the box over the whole step: its place at the middle
 // of each of n equal pieces, grown by the travel over that piece.

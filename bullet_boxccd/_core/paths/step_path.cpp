@@ -109,27 +109,6 @@ double pose_depth(const double *X_WA, const double *ha, const double *X_WB, cons
     return pose_separation(X_WA, ha, X_WB, hb, nullptr);
 }
 
-double path_separation(const double *box_a, const double *box_b, double tau, double *axis, double floor) {
-    double X_WA[16], X_WB[16];
-    row_pose(box_a, tau, X_WA);
-    row_pose(box_b, tau, X_WB);
-    return pose_separation(X_WA, box_a + pr::kHalfExtents, X_WB, box_b + pr::kHalfExtents, axis, floor);
-}
-
-double path_depth(const double *box_a, const double *box_b, double tau) {
-    return path_separation(box_a, box_b, tau, nullptr);
-}
-
-namespace {
-
-// Whether the depth at tau reaches target (path_depth >= target), stopping at the
-// first axis that says no.
-bool depth_reaches(const double *box_a, const double *box_b, double tau, double target) {
-    return path_separation(box_a, box_b, tau, nullptr, target) >= target;
-}
-
-}  // namespace
-
 void swept_bounds(const double *box, double *lo, double *hi) {
     const double *h = box + pr::kHalfExtents;
     const double r = reach_radius(box);
@@ -153,50 +132,6 @@ void swept_bounds(const double *box, double *lo, double *hi) {
             hi[i] = std::fmax(hi[i], c + e + pad);
         }
     }
-}
-
-double first_depth(const double *box_a, const double *box_b, double tau_from, double target, double depth_from) {
-    const double span = 1.0 - tau_from;
-    // The boxes' penetration depth (what path_depth gives while they overlap: the
-    // smallest of the 15 axes' overlaps) moves by at most the sum of their points'
-    // travel, which over a fraction s of the step is at most s (|displacement| +
-    // angle r) each: look-ahead samples nearer than that to tau_from cannot reach the
-    // target, and are skipped.
-    const auto travel = [](const double *box) {
-        const double *d = box + pr::kDisplacement;
-        return std::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]) + std::fabs(box[pr::kAngle]) * reach_radius(box);
-    };
-    if (std::isnan(depth_from)) depth_from = path_depth(box_a, box_b, tau_from);
-    const double need = target - std::fmax(depth_from, 0.0);
-    const double speed = (travel(box_a) + travel(box_b)) * span;
-    // The first sample taken: the largest k <= kDepthLookAhead with speed 2^-k >= need (k = 0 is
-    // always taken; with speed not a number, every k is).
-    int k0 = kDepthLookAhead;
-    if (need > 0.0 && speed >= 0.0) {
-        const double x = speed / need;
-        int e = kDepthLookAhead + 1;
-        if (std::isfinite(x)) std::frexp(x, &e);  // x = m 2^e, m in [0.5, 1): floor(log2 x) = e - 1
-        k0 = std::clamp(e - 1, 0, kDepthLookAhead);
-        while (k0 < kDepthLookAhead && !(std::ldexp(speed, -(k0 + 1)) < need)) ++k0;  // the division's rounding
-        while (k0 > 0 && std::ldexp(speed, -k0) < need) --k0;
-    }
-    double lo = k0 < kDepthLookAhead ? tau_from + std::ldexp(span, -(k0 + 1)) : tau_from, hi = kNaN;
-    for (double step = std::ldexp(span, -k0); ; step *= 2.0) {  // 2^-k of the rest of the step, k = k0 .. 0
-        const double t = tau_from + step;
-        if (depth_reaches(box_a, box_b, t, target)) {
-            hi = t;
-            break;
-        }
-        lo = t;
-        if (!(step < span)) break;
-    }
-    if (std::isnan(hi)) return hi;
-    for (int it = 0; it < kMaxDepthHalvings && hi - lo > kDepthWidth; ++it) {
-        const double mid = 0.5 * (lo + hi);
-        if (mid <= lo || mid >= hi) break;
-        if (depth_reaches(box_a, box_b, mid, target)) hi = mid; else lo = mid;
-    }
-    return hi;
 }
 
 double step_reach(const double *state, double dt, double radius) {
@@ -346,14 +281,6 @@ bool finite_row(const double *box) {
 }
 
 }  // namespace
-
-bool presses_in(const double *box_a, const double *box_b, double penetration, double creep, double depth0) {
-    const double *ha = box_a + pr::kHalfExtents, *hb = box_b + pr::kHalfExtents;
-    const double thin = std::min({ha[0], ha[1], ha[2], hb[0], hb[1], hb[2]});
-    if (std::isnan(depth0)) depth0 = path_depth(box_a, box_b, 0.0);
-    const double target = std::max(depth0, 0.0) + std::max(penetration, creep * thin);
-    return !std::isnan(first_depth(box_a, box_b, 0.0, target, depth0));
-}
 
 Hit path_contact(const double *box_a, const double *box_b, double lo, double hi, const Tolerances &tol) {
     if (!finite_row(box_a) || !finite_row(box_b)) {

@@ -79,23 +79,6 @@ double pose_depth(const double *X_WA, const double *ha, const double *X_WB, cons
 double pose_separation(const double *X_WA, const double *ha, const double *X_WB, const double *hb, double *axis,
                        double floor = -std::numeric_limits<double>::infinity());
 
-// pose_depth of two path rows' boxes at step fraction tau.
-double path_depth(const double *box_a, const double *box_b, double tau);
-
-// pose_separation of two path rows' boxes at step fraction tau.
-double path_separation(const double *box_a, const double *box_b, double tau, double *axis,
-                       double floor = -std::numeric_limits<double>::infinity());
-
-// The first tau in (tau_from, 1] at which the depth reaches `target`, NaN if it
-// does not. A geometric look-ahead (offsets 2^-k of the rest of the step) finds
-// the first sample past the target even for a fast pass through a thin wall;
-// bisection then brackets the crossing to 1e-15 and returns its upper end.
-// Samples nearer tau_from than the boxes' travel lets the depth grow to the target
-// are skipped (penetration depth moves no faster than the boxes' points).
-// depth_from: the depth at tau_from, if known (NaN: computed).
-double first_depth(const double *box_a, const double *box_b, double tau_from, double target,
-                   double depth_from = std::numeric_limits<double>::quiet_NaN());
-
 // Axis-aligned bounds of a box over the whole step: exact at tau = 0, 1/4, ...,
 // 1 (centre +- |R| half) and widened by the largest distance of a point's arc
 // from its chords between them, r (angle / 4)^2 / 8 (r: the farthest box point
@@ -116,13 +99,6 @@ int fit_pieces(const double *box, double fit_tolerance);
 
 // The first touch of two path rows' boxes on their fitted motions is box_path.hpp's
 // first_touch on RowBoxPaths (one piecewise search for every path kind).
-
-// Whether two boxes that touch at the start of the step (path rows) press in during
-// it: their overlap grows past what it was at the start by penetration, and by
-// creep times the smaller half extent of the two (less is the creep of a contact
-// pybullet holds).
-bool presses_in(const double *box_a, const double *box_b, double penetration, double creep,
-                double depth0 = std::numeric_limits<double>::quiet_NaN());
 
 // The first touch of two boxes known to touch within [lo, hi], with its
 // geometry (one fit over the window, inflated likewise); t is a step fraction.

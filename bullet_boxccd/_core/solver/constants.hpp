@@ -131,12 +131,6 @@ constexpr double kMinWindow = 1e-12;
 constexpr int kMaxFitPieces = 64;
 
 // Boxes on any path (box_path.cpp, chain.cpp).
-// first_depth (BoxPath) halves pieces pruned by the boxes' travel; once a piece no
-// wider than kDepthNarrow reaches the target at its middle, the crossing between
-// its start and middle is bisected (a dip and rise inside so narrow a piece is not
-// looked for) down to kDepthPieceWidth of the step; narrower pieces are not split.
-constexpr double kDepthNarrow = 1.0 / 256.0;
-constexpr double kDepthPieceWidth = 1e-13;
 // Rounding of the link poses a fit interpolates, per level of the chain, relative
 // to the lengths involved: a few products and sums of eps each; taken generously.
 constexpr double kFitRounding = 32.0 * kEps;

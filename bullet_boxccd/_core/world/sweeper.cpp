@@ -74,10 +74,10 @@ long first_touches(const double *rows, const int64_t *pairs, size_t n, double fi
                    double penetration, double creep, double *out, int8_t *state, int64_t *counts) {
     long solves = 0;
     for (size_t k = 0; k < n; ++k) {
-        const double *a = rows + kPathBoxSize * pairs[2 * k], *b = rows + kPathBoxSize * pairs[2 * k + 1];
+        const RowBoxPath a(rows + kPathBoxSize * pairs[2 * k]), b(rows + kPathBoxSize * pairs[2 * k + 1]);
         const double depth0 = path_depth(a, b, 0.0);
         Outcome o;
-        out[k] = first_touch(RowBoxPath(a), RowBoxPath(b), fit_tolerance, tol, solves, o, depth0);
+        out[k] = first_touch(a, b, fit_tolerance, tol, solves, o, depth0);
         if (out[k] == 0.0 && creep >= 0.0 && !presses_in(a, b, penetration, creep, depth0)) {
             out[k] = std::numeric_limits<double>::quiet_NaN();
             o = Outcome::Separated;
