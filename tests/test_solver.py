@@ -573,7 +573,8 @@ def _path_row(position):
 
 
 def test_step_path_queries_say_a_row_is_not_finite():
-    """A row with NaN is not "apart": first_touches and path_contact say NON_FINITE."""
+    """A row with NaN is not "apart": first_touches says NON_FINITE, and a RowBoxPath
+    refuses it; two finite rows touching at the start make an INITIAL window contact."""
     rows = np.array([_path_row((0.0, 0.0, 0.0)), _path_row((0.5, 0.0, 0.0)), _path_row((5.0, 0.0, 0.0))])
     rows[2, 3] = np.nan
     pairs = np.array([[0, 1], [0, 2]], dtype=np.int64)
@@ -581,9 +582,10 @@ def test_step_path_queries_say_a_row_is_not_finite():
     # Pair 0 touches at the start: the depth test says so without a solve.
     assert [Outcome(k) for k in states] == [Outcome.INITIAL, Outcome.NON_FINITE] and solves == 0
     assert tau[0] == 0.0 and np.isnan(tau[1])
-    c = _core.path_contact(rows[[0, 2]], 0.0, 1.0, Tolerances()._core)
-    assert c.outcome is Outcome.NON_FINITE and c.feature is None and np.all(np.isnan(c.point))
-    c = _core.path_contact(rows[[0, 1]], 0.0, 1.0, Tolerances()._core)
+    with pytest.raises(ValueError, match="not finite"):
+        _core.RowBoxPath(rows[2])
+    c = _core.paths_window_contact(_core.RowBoxPath(rows[0]), _core.RowBoxPath(rows[1]), 0.0, 1.0,
+                                   Tolerances()._core)
     assert c.outcome is Outcome.INITIAL and c.feature.kind in ("OV", "VO", "EE")
 
 

@@ -489,7 +489,8 @@ class Contacts:
         refit's error bound so that a touch cannot be missed; None if they stay apart
         (the first touch found on the step's fit was within that fit's allowance only). Its
         outcome is counted in the stats."""
-        c = _core.path_contact(pair, lo, hi, self.tolerances._core)
+        c = _core.paths_window_contact(_core.RowBoxPath(pair[0]), _core.RowBoxPath(pair[1]), lo, hi,
+                                       self.tolerances._core)
         self.stats.outcomes[Outcome.SEPARATED if c is None else c.outcome] += 1
         return c
 

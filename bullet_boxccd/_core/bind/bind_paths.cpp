@@ -16,7 +16,6 @@ namespace boxccd::bind {
 
 namespace {
 
-using PathBoxes = In<2, kPathBoxSize>;
 using PathRows = In<-1, kPathBoxSize>;
 
 // ------------------------------------------------------------------ path rows
@@ -49,13 +48,6 @@ nb::tuple py_fit_path(const In<kPathBoxSize> &box, double lo, double hi) {
     auto [out, owner] = new_buffer<double>(48);
     const double err = fit_path(box.data(), lo, hi, out);
     return nb::make_tuple(Out<double, 3, 4, 4>(out, {3, 4, 4}, owner), err);
-}
-
-// Like solve: a Contact (whose outcome says what happened, NON_FINITE for a row
-// that is not finite) or None.
-nb::object py_path_contact(const PathBoxes &boxes, double lo, double hi, const Tolerances &tol) {
-    validate(tol);
-    return hit_result(path_contact(boxes.data(), boxes.data() + kPathBoxSize, lo, hi, tol));
 }
 
 // Column layouts (name -> (start, stop)) of the frame state and the path row.
@@ -166,6 +158,16 @@ nb::tuple py_paths_contact(const BoxPath &a, const BoxPath &b, double fit_tolera
     return nb::make_tuple(t, solves, hit_result(h));
 }
 
+// Like solve: a Contact (whose outcome says what happened, NON_FINITE for a path
+// that is not finite) or None: window_contact over [lo, hi].
+nb::object paths_window_contact(const BoxPath &a, const BoxPath &b, double lo, double hi, const Tolerances &tol) {
+    if (!(0.0 <= lo && lo <= hi && hi <= 1.0))
+        throw nb::value_error(
+            ("expected 0 <= lo <= hi <= 1, got lo = " + std::to_string(lo) + ", hi = " + std::to_string(hi)).c_str());
+    validate(tol);
+    return hit_result(window_contact(a, b, lo, hi, tol));
+}
+
 double paths_depth(const BoxPath &a, const BoxPath &b, double tau) {
     check_tau(tau);
     return path_depth(a, b, tau);
@@ -196,7 +198,6 @@ void bind_paths(nb::module_ &m) {
     m.def("row_poses", &py_row_poses, nb::arg("rows"), nb::arg("taus"));
     m.def("window_rows", &py_window_rows, nb::arg("rows"), nb::arg("lo"), nb::arg("hi"));
     m.def("fit_path", &py_fit_path, nb::arg("box"), nb::arg("lo"), nb::arg("hi"));
-    m.def("path_contact", &py_path_contact, nb::arg("boxes"), nb::arg("lo"), nb::arg("hi"), nb::arg("tolerances"));
 
     nb::class_<BoxPath>(m, "BoxPath", "A box on a within-step path (box_path.hpp); see RowBoxPath, LinkBoxPath.")
         .def("pose", &path_pose, nb::arg("tau"))
@@ -213,6 +214,8 @@ void bind_paths(nb::module_ &m) {
     m.def("paths_first_touch", &paths_first_touch, nb::arg("a"), nb::arg("b"), nb::arg("fit_tolerance"),
           nb::arg("tolerances"), nb::arg("state") = false);
     m.def("paths_contact", &py_paths_contact, nb::arg("a"), nb::arg("b"), nb::arg("fit_tolerance"),
+          nb::arg("tolerances"));
+    m.def("paths_window_contact", &paths_window_contact, nb::arg("a"), nb::arg("b"), nb::arg("lo"), nb::arg("hi"),
           nb::arg("tolerances"));
     m.def("paths_depth", &paths_depth, nb::arg("a"), nb::arg("b"), nb::arg("tau"));
     m.def("paths_relative_move", &relative_move, nb::arg("a"), nb::arg("b"),

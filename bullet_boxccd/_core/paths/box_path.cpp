@@ -153,6 +153,48 @@ void path_bounds(const BoxPath &path, int n, double *lo, double *hi) {
     }
 }
 
+namespace {
+
+// One solve of the two boxes on their quadratic fits over [lo, hi] (the Hit's t is
+// on the piece's own [0, 1]), each box grown by its fit's growth and by `extra`
+// times its reach; `fitted` false (and no solve) when a fit is not proven.
+Hit solve_piece(const BoxPath &a, const BoxPath &b, double lo, double hi, double extra, const Tolerances &tol,
+                bool geometry, bool &fitted) {
+    double coeffs_a[48], coeffs_b[48];
+    const double grow_a = a.fit(lo, hi, coeffs_a) + extra * a.reach(), grow_b = b.fit(lo, hi, coeffs_b) + extra * b.reach();
+    fitted = grow_a < kInf && grow_b < kInf;
+    for (int i = 0; i < 48; ++i) fitted = fitted && std::isfinite(coeffs_a[i]) && std::isfinite(coeffs_b[i]);
+    if (!fitted) return Hit{};
+    double lo_a[3], hi_a[3], lo_b[3], hi_b[3];
+    for (int i = 0; i < 3; ++i) {
+        hi_a[i] = a.half_extents()[i] + grow_a;
+        lo_a[i] = -hi_a[i];
+        hi_b[i] = b.half_extents()[i] + grow_b;
+        lo_b[i] = -hi_b[i];
+    }
+    Query query({lo_a, hi_a, coeffs_a}, {lo_b, hi_b, coeffs_b}, 0.0, 1.0, tol);
+    return query.solve(geometry);
+}
+
+}  // namespace
+
+Hit window_contact(const BoxPath &a, const BoxPath &b, double lo, double hi, const Tolerances &tol) {
+    Hit h;
+    if (!a.finite() || !b.finite()) {
+        h.outcome = Outcome::NonFinite;
+        return h;
+    }
+    if (hi - lo < kMinWindow) lo = std::max(0.0, hi - kMinWindow);
+    bool fitted;
+    h = solve_piece(a, b, lo, hi, kMinWindow, tol, true, fitted);
+    if (!fitted) {
+        h.outcome = Outcome::StepCap, h.t = lo, h.s = kNaN;
+        return h;
+    }
+    if (h.contact()) h.t = lo + h.t * (hi - lo);
+    return h;
+}
+
 double first_touch(const BoxPath &a, const BoxPath &b, double fit_tolerance, const Tolerances &tol, long &solves,
                    Outcome &outcome, double depth0, Hit *contact) {
     outcome = Outcome::Separated;
@@ -173,25 +215,14 @@ double first_touch(const BoxPath &a, const BoxPath &b, double fit_tolerance, con
     const int n = std::max(a.pieces(fit_tolerance), b.pieces(fit_tolerance));
     for (int k = 0; k < n; ++k) {  // pieces in order: the first that touches has the first touch
         const double lo = double(k) / n, hi = double(k + 1) / n;
-        double coeffs_a[48], coeffs_b[48];
-        const double grow_a = a.fit(lo, hi, coeffs_a), grow_b = b.fit(lo, hi, coeffs_b);
+        bool fitted;
+        Hit h = solve_piece(a, b, lo, hi, 0.0, tol, contact != nullptr, fitted);
         // No proven fit (too fast even for 64 pieces, or a fit overflowed): early, never late.
-        bool fitted = grow_a < kInf && grow_b < kInf;
-        for (int i = 0; i < 48; ++i) fitted = fitted && std::isfinite(coeffs_a[i]) && std::isfinite(coeffs_b[i]);
         if (!fitted) {  // a cap reached (kMaxFitPieces): early, not proven a contact
             outcome = at_start ? Outcome::Initial : Outcome::StepCap;
             if (contact) contact->outcome = outcome, contact->t = lo, contact->s = at_start ? 0.0 : kNaN;
             return lo;
         }
-        double lo_a[3], hi_a[3], lo_b[3], hi_b[3];
-        for (int i = 0; i < 3; ++i) {
-            hi_a[i] = a.half_extents()[i] + grow_a;
-            lo_a[i] = -hi_a[i];
-            hi_b[i] = b.half_extents()[i] + grow_b;
-            lo_b[i] = -hi_b[i];
-        }
-        Query query({lo_a, hi_a, coeffs_a}, {lo_b, hi_b, coeffs_b}, 0.0, 1.0, tol);
-        Hit h = query.solve(contact != nullptr);
         ++solves;
         if (h.contact() || at_start) {
             // A degraded outcome (early, not proven) stays what it is; a touch at the

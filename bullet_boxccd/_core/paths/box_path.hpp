@@ -39,6 +39,8 @@ class BoxPath {
     // How far any point of the box can be, over [lo, hi], from where it is at
     // (lo + hi) / 2 (a length, world): what first_depth's look-ahead skips with.
     virtual double travel(double lo, double hi) const = 0;
+    // The farthest point of the box from its frame's origin.
+    virtual double reach() const = 0;
 };
 
 // A box on a free frame's path row (PathRow, 42 doubles, copied).
@@ -51,6 +53,7 @@ class RowBoxPath : public BoxPath {
     int pieces(double fit_tolerance) const override;
     bool finite() const override { return finite_; }
     double travel(double lo, double hi) const override;
+    double reach() const override { return reach_; }
     const double *row() const { return row_; }
 
   private:
@@ -111,5 +114,13 @@ void path_bounds(const BoxPath &path, int n, double *lo, double *hi);
 double first_touch(const BoxPath &a, const BoxPath &b, double fit_tolerance, const Tolerances &tol, long &solves,
                    Outcome &outcome, double depth0 = std::numeric_limits<double>::quiet_NaN(),
                    Hit *contact = nullptr);
+
+// The first touch of two boxes known to touch within [lo, hi] (step fractions),
+// with its geometry: one quadratic fit of each path over the window (widened to
+// kMinWindow if narrower), each box grown by its fit's growth and by kMinWindow
+// of its reach (the refit's rounding), so that the touch cannot be lost. t is a
+// step fraction. NonFinite for a path that is not finite; StepCap (t = lo) when
+// no fit over the window is proven.
+Hit window_contact(const BoxPath &a, const BoxPath &b, double lo, double hi, const Tolerances &tol);
 
 }  // namespace boxccd

@@ -160,6 +160,7 @@ class LinkBoxPath : public BoxPath {
     int pieces(double fit_tolerance) const override;
     bool finite() const override { return true; }  // checked when built
     double travel(double lo, double hi) const override;
+    double reach() const override { return reach_; }
 
   private:
     struct Growth {

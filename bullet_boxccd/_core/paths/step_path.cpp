@@ -4,6 +4,8 @@
 #include <cmath>
 #include <limits>
 
+#include "solver/vec.hpp"
+
 namespace boxccd {
 
 namespace {
@@ -15,10 +17,12 @@ constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
 // Farthest point of the box from its frame's origin.
 double reach_radius(const double *box) {
-    const double *X_CS = box + pr::kBoxInFrame, *h = box + pr::kHalfExtents;
-    return std::sqrt(X_CS[3] * X_CS[3] + X_CS[7] * X_CS[7] + X_CS[11] * X_CS[11]) +
-           std::sqrt(h[0] * h[0] + h[1] * h[1] + h[2] * h[2]);
+    const double *X_CS = box + pr::kBoxInFrame;
+    return norm3(Vec3{X_CS[3], X_CS[7], X_CS[11]}) + norm3(box + pr::kHalfExtents);
 }
+
+// Column i of a row-major 4x4 pose's rotation.
+Vec3 column(const double *X, int i) { return {X[i], X[4 + i], X[8 + i]}; }
 
 }  // namespace
 
@@ -62,45 +66,41 @@ namespace {
 
 // Overlap of the two boxes' projections on unit axis u (negative: a gap); d is
 // the centre of B less the centre of A.
-double overlap_on(const double *u, const double *X_WA, const double *ha, const double *X_WB, const double *hb,
-                  const double *d) {
+double overlap_on(const Vec3 &u, const double *X_WA, const double *ha, const double *X_WB, const double *hb,
+                  const Vec3 &d) {
     double r = 0.0;
     for (int i = 0; i < 3; ++i) {
-        r += ha[i] * std::fabs(u[0] * X_WA[i] + u[1] * X_WA[4 + i] + u[2] * X_WA[8 + i]);
-        r += hb[i] * std::fabs(u[0] * X_WB[i] + u[1] * X_WB[4 + i] + u[2] * X_WB[8 + i]);
+        r += ha[i] * std::fabs(dot3(u, column(X_WA, i)));
+        r += hb[i] * std::fabs(dot3(u, column(X_WB, i)));
     }
-    return r - std::fabs(u[0] * d[0] + u[1] * d[1] + u[2] * d[2]);
+    return r - std::fabs(dot3(u, d));
 }
 
 }  // namespace
 
 double pose_separation(const double *X_WA, const double *ha, const double *X_WB, const double *hb, double *axis,
                        double floor) {
-    const double d[3] = {X_WB[3] - X_WA[3], X_WB[7] - X_WA[7], X_WB[11] - X_WA[11]};
+    const Vec3 d{X_WB[3] - X_WA[3], X_WB[7] - X_WA[7], X_WB[11] - X_WA[11]};
     double depth = std::numeric_limits<double>::infinity();
-    const auto consider = [&](const double *u) {  // whether the depth is still >= floor
+    const auto consider = [&](const Vec3 &u) {  // whether the depth is still >= floor
         const double o = overlap_on(u, X_WA, ha, X_WB, hb, d);
         if (o < depth) {
             depth = o;
             if (axis) {  // oriented from A towards B
-                const double sgn = u[0] * d[0] + u[1] * d[1] + u[2] * d[2] < 0.0 ? -1.0 : 1.0;
+                const double sgn = dot3(u, d) < 0.0 ? -1.0 : 1.0;
                 for (int k = 0; k < 3; ++k) axis[k] = sgn * u[k];
             }
         }
         return !(depth < floor);
     };
-    for (int i = 0; i < 3; ++i) {  // face normals (rigid boxes: the axes are orthonormal)
-        const double ua[3] = {X_WA[i], X_WA[4 + i], X_WA[8 + i]}, ub[3] = {X_WB[i], X_WB[4 + i], X_WB[8 + i]};
-        if (!consider(ua) || !consider(ub)) return depth;
-    }
+    for (int i = 0; i < 3; ++i)  // face normals (rigid boxes: the axes are orthonormal)
+        if (!consider(column(X_WA, i)) || !consider(column(X_WB, i))) return depth;
     for (int i = 0; i < 3; ++i)
         for (int j = 0; j < 3; ++j) {
-            const double a[3] = {X_WA[i], X_WA[4 + i], X_WA[8 + i]}, b[3] = {X_WB[j], X_WB[4 + j], X_WB[8 + j]};
-            double u[3] = {a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]};
+            const Vec3 u = cross3(column(X_WA, i), column(X_WB, j));
             const double n = norm3(u);
             if (!(n > kParallel)) continue;  // parallel edges give no axis (unit a, b: |a x b| is the sine)
-            for (double &x : u) x /= n;
-            if (!consider(u)) return depth;
+            if (!consider(Vec3{u[0] / n, u[1] / n, u[2] / n})) return depth;
         }
     return depth;
 }
@@ -136,8 +136,7 @@ void swept_bounds(const double *box, double *lo, double *hi) {
 
 double step_reach(const double *state, double dt, double radius) {
     const double *v = state + fs::kVelocity, *w = state + fs::kAngularVelocity;
-    return (std::sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]) +
-            std::sqrt(w[0] * w[0] + w[1] * w[1] + w[2] * w[2]) * radius) * dt;
+    return (norm3(v) + norm3(w) * radius) * dt;
 }
 
 double bullet_step_angle(double speed, double dt) {
@@ -180,7 +179,7 @@ void path_row(const double *state, double dt, const double *X_CS, const double *
     const double *v = state + fs::kVelocity, *w = state + fs::kAngularVelocity;
     row_frame_and_box(state + fs::kPosition, X_CS, half, row);
     for (int i = 0; i < 3; ++i) row[pr::kDisplacement + i] = v[i] * dt;
-    const double speed = std::sqrt(w[0] * w[0] + w[1] * w[1] + w[2] * w[2]);
+    const double speed = norm3(w);
     for (int i = 0; i < 3; ++i) row[pr::kAxis + i] = speed > 0.0 ? w[i] / speed : 0.0;
     row[pr::kAngle] = bullet_step_angle(speed, dt);
 }
@@ -196,7 +195,7 @@ void path_row_between(const double *pose0, const double *pose1, const double *X_
                    a[3] * b[3] + a[0] * b[0] + a[1] * b[1] + a[2] * b[2]};
     if (t[3] < 0.0)
         for (double &x : t) x = -x;
-    const double sin_half = std::sqrt(t[0] * t[0] + t[1] * t[1] + t[2] * t[2]);
+    const double sin_half = norm3(t);
     for (int i = 0; i < 3; ++i) row[pr::kAxis + i] = sin_half > 0.0 ? t[i] / sin_half : 0.0;
     row[pr::kAngle] = 2.0 * std::atan2(sin_half, t[3]);
 }
@@ -215,7 +214,7 @@ void window_row(const double *row, double lo, double hi, double *out) {
 
 void frame_pose(const double *state, double dt, double tau, double *pose) {
     const double *q1 = state + fs::kOrientation, *v = state + fs::kVelocity, *w = state + fs::kAngularVelocity;
-    const double speed = std::sqrt(w[0] * w[0] + w[1] * w[1] + w[2] * w[2]);
+    const double speed = norm3(w);
     const double half_angle = 0.5 * (tau - 1.0) * bullet_step_angle(speed, dt);
     const double s = speed > 0.0 ? std::sin(half_angle) / speed : 0.0, c = std::cos(half_angle);
     const double u[3] = {s * w[0], s * w[1], s * w[2]};  // the turn (tau - 1) angle about w: (u, c)
@@ -252,48 +251,6 @@ int fit_pieces(const double *box, double fit_tolerance) {
     int pieces = 1;
     while (pieces < kMaxFitPieces && err1 > allowed * pieces * pieces * pieces) pieces *= 2;
     return pieces;
-}
-
-namespace {
-
-// The fitted motion of a box over [lo, hi] for path_contact, its box inflated by
-// the fit's reach as RowBoxPath::fit grows it (a point at distance r is off by at
-// most err r, and a ball fits in the sheared box once scaled by 1 / (1 - err);
-// err < 0.5: Bullet turns a body by less than pi in a step), and by `extra`
-// times r more.
-struct FittedBox {
-    double lo[3], hi[3], coeffs[48];
-    FittedBox(const double *box, double t_lo, double t_hi, double extra) {
-        const double err = fit_path(box, t_lo, t_hi, coeffs), r = reach_radius(box);
-        const double grow = err * r / (1.0 - err) + extra * r;
-        for (int i = 0; i < 3; ++i) {
-            hi[i] = box[pr::kHalfExtents + i] + grow;
-            lo[i] = -hi[i];
-        }
-    }
-    BoxInput input() const { return {lo, hi, coeffs}; }
-};
-
-bool finite_row(const double *box) {
-    for (int i = 0; i < kPathBoxSize; ++i)
-        if (!std::isfinite(box[i])) return false;
-    return true;
-}
-
-}  // namespace
-
-Hit path_contact(const double *box_a, const double *box_b, double lo, double hi, const Tolerances &tol) {
-    if (!finite_row(box_a) || !finite_row(box_b)) {
-        Hit h;
-        h.outcome = Outcome::NonFinite;
-        return h;
-    }
-    if (hi - lo < kMinWindow) lo = std::max(0.0, hi - kMinWindow);
-    const FittedBox a(box_a, lo, hi, kMinWindow), b(box_b, lo, hi, kMinWindow);
-    Query query(a.input(), b.input(), 0.0, 1.0, tol);
-    Hit h = query.solve(true);
-    if (h.contact()) h.t = lo + h.t * (hi - lo);
-    return h;
 }
 
 }  // namespace boxccd

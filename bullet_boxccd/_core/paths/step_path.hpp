@@ -97,12 +97,7 @@ double fit_path(const double *box, double lo, double hi, double *coeffs);
 // most fit_tolerance times its smallest half extent.
 int fit_pieces(const double *box, double fit_tolerance);
 
-// The first touch of two path rows' boxes on their fitted motions is box_path.hpp's
-// first_touch on RowBoxPaths (one piecewise search for every path kind).
-
-// The first touch of two boxes known to touch within [lo, hi], with its
-// geometry (one fit over the window, inflated likewise); t is a step fraction.
-// Its outcome says what happened (NonFinite for a row that is not finite).
-Hit path_contact(const double *box_a, const double *box_b, double lo, double hi, const Tolerances &tol);
+// Depths, first touches and contacts of two path rows' boxes are box_path.hpp's, on
+// RowBoxPaths (one abstraction for every path kind).
 
 }  // namespace boxccd
