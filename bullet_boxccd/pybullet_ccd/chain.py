@@ -21,6 +21,7 @@ import numpy as np
 import pybullet as p
 
 from .. import _core
+from ..motion import pose_matrix
 
 __all__ = ["BodyChain", "read_base_state", "read_chain", "read_joint_state"]
 
@@ -81,11 +82,8 @@ class BodyChain:
     def local_inertial_matrices(self) -> np.ndarray:
         """(n, 4, 4) each link's centre-of-mass frame in its URDF link frame: the link frame
         (getLinkState()[4:6]) is the centre-of-mass frame times the inverse of this."""
-        out = np.tile(np.eye(4), (self.n_links, 1, 1))
-        for i in range(self.n_links):
-            out[i, :3, :3] = np.reshape(p.getMatrixFromQuaternion(self.inertial_orn[i]), (3, 3))
-            out[i, :3, 3] = self.inertial_pos[i]
-        return out
+        return np.array([pose_matrix(pos, orn) for pos, orn in zip(self.inertial_pos, self.inertial_orn)]).reshape(
+            self.n_links, 4, 4)
 
 
 def _floats(x, name: str) -> np.ndarray:
