@@ -81,6 +81,7 @@ class Articulated:
         """``self_collision``: {body: URDF_USE_SELF_COLLISION* bits} of the bodies whose links
         collide with each other; ``sweep_reach``: (boxes,) a box moving farther in a step is swept."""
         self.cid, self.tables, self.sweep_reach = cid, tables, sweep_reach
+        self._link_ok = {}  # (box, box) of articulated bodies -> whether pybullet collides them
         self.bodies = {}
         for b, frames in tables.frames_of.items():
             if not any(tables.kind[f] == LINK for f in frames):
@@ -192,23 +193,21 @@ class Articulated:
         if not fast:
             return []
         stats.swept_boxes += len(fast)
-        slack = state.sweeper.slack(dt)  # how far a box of another frame moves
+        rigid = self._rigid_near(fast, state, dt)
         linked = self._linked_pairs(fast, dt)
-        found, reach = [], self.sweep_reach
-        cache, seen = {}, set()
+        found, reach, allowed = [], self.sweep_reach, t.filters.allowed
+        seen = set()
         for k, (rec, f, i, box) in enumerate(fast):
-            path = self._path(rec, i, dt)
-            near = overlap_query(self.cid, box, slack)
-            candidates = [(t.index[key], j) for key in near if key in t.index and t.index[key] not in self.frames
-                          for j in t.frame_boxes[t.index[key]]]
-            candidates += linked.get(k, ())
-            for g, j in candidates:
-                if g == f or (min(i, j), max(i, j)) in seen or not self._collide(rec, f, g):
+            pairs = [(g, j, other) for g, j, other, bounds in rigid if _meet(box, bounds) and allowed(f, g)]
+            pairs += [(g, j, None) for g, j in linked.get(k, ())]
+            path = None
+            for g, j, other in pairs:
+                key = (i, j) if i < j else (j, i)
+                if key in seen:
                     continue
-                seen.add((min(i, j), max(i, j)))
-                other = self._partner(j, g, state, dt, cache)
-                if g not in self.frames and not _meet(box, other.bounds(1).tolist()):
-                    continue  # their swept bounds do not meet
+                seen.add(key)
+                path = path or self._path(rec, i, dt)
+                other = other or self._path(self.bodies[int(t.body[g])], j, dt)
                 if _core.paths_relative_move(path, other) <= min(reach[i], reach[j]):
                     continue  # slow against each other (a link and its neighbour, a foot and the ground it rests on)
                 hit = self._judge(path, other, fit_tolerance, tolerances, penetration, stats)
@@ -284,9 +283,34 @@ class Articulated:
         f = t.filters
         pairs = _core.candidate_pairs(np.array(bounds, dtype=np.float64), len(fast), frame, t.body, t.self_collides,
                                       f.group, f.mask, f.mode)
-        out = {}
+        out, ok = {}, self._link_ok
         for k, m in pairs.tolist():
-            out.setdefault(k, []).append((int(frame[m]), boxes[m]))
+            i, j = boxes[k], boxes[m]
+            key = (i, j) if i < j else (j, i)
+            if key not in ok:
+                ok[key] = self._collide(fast[k][0], fast[k][1], int(frame[m]))
+            if ok[key]:
+                out.setdefault(k, []).append((int(frame[m]), j))
+        return out
+
+    def _rigid_near(self, fast, state, dt):
+        """[(frame, box, path, swept bounds)] of the boxes not of articulated bodies that
+        pybullet's broad phase finds near the fast boxes (one query on their common bounds,
+        widened by the farthest such a box moves in the step)."""
+        t = self.tables
+        bounds = [b for *_, b in fast]
+        box = [min(b[d] for b in bounds) for d in range(3)] + [max(b[d] for b in bounds) for d in range(3, 6)]
+        near = overlap_query(self.cid, box, state.sweeper.slack(dt))
+        frames = [g for g in (t.index.get(key) for key in near) if g is not None and g not in self.frames]
+        if not frames:
+            return []
+        state.read_poses(state.stale(frames))
+        boxes = np.array([j for g in frames for j in t.frame_boxes[g]], dtype=np.int64)
+        rows = _core.path_rows(state.rows, dt, boxes, t.box_frame, t.X_CS, t.half)
+        out = []
+        for j, row in zip(boxes.tolist(), rows):
+            path = _core.RowBoxPath(row)
+            out.append((int(t.box_frame[j]), j, path, path.bounds(1).tolist()))
         return out
 
     def _collide(self, rec, f, g):
@@ -299,17 +323,6 @@ class Articulated:
             if lb in rec.ancestors.get(la, ()) or la in rec.ancestors.get(lb, ()):
                 return False
         return bool(t.filters.allowed(f, g))
-
-    def _partner(self, j, g, state, dt, cache):
-        t = self.tables
-        rec = self.bodies.get(int(t.body[g]))
-        if rec is not None and rec.motion is not None:
-            return self._path(rec, j, dt)
-        if ("row", j) not in cache:
-            state.read_poses(state.stale([g]))
-            row = _core.path_rows(state.rows, dt, np.array([j], dtype=np.int64), t.box_frame, t.X_CS, t.half)[0]
-            cache[("row", j)] = _core.RowBoxPath(row)
-        return cache[("row", j)]
 
     def _judge(self, a, b, fit_tolerance, tolerances, penetration, stats):
         """(touch, act at or None, (point, normal, feature), initial, pressing: touching or
