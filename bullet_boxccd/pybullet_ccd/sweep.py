@@ -14,6 +14,7 @@ A kinematic frame's jump (the user's teleport before the step) is swept apart, i
 
 from __future__ import annotations
 
+import math
 import time
 from dataclasses import dataclass
 
@@ -21,7 +22,7 @@ import numpy as np
 
 from .. import _core
 from ._hooks import MAX_VELOCITY, raw
-from .layout import ANGULAR_VELOCITY, POSE, TWIST, VELOCITY
+from .layout import POSE, TWIST
 from .world import FREE
 
 __all__ = ["Sweep", "sweep", "jump_sweep", "moves_into", "CREEP", "overlap_query"]
@@ -81,12 +82,10 @@ def sweep(cid, tables, state, dt, fit_tolerance, tolerances, penetration, stats,
             return None
     fast, slack, fast_frames = fast
     if at_clamp is not None:
-        rows = state.rows[fast_frames]
-        speeds = np.stack([np.linalg.norm(rows[:, VELOCITY], axis=1),
-                           np.linalg.norm(rows[:, ANGULAR_VELOCITY], axis=1)])
-        clamped = np.any(np.abs(speeds - MAX_VELOCITY) <= 1e-9 * MAX_VELOCITY, axis=0)
-        if clamped.any():
-            at_clamp([f for f, c in zip(fast_frames, clamped) if c])  # it checks the body's own clamp
+        clamped = [f for f, twist in zip(fast_frames, state.rows[fast_frames, TWIST].tolist())
+                   if _at_clamp(twist[:3]) or _at_clamp(twist[3:])]
+        if clamped:
+            at_clamp(clamped)  # it checks the body's own clamp
     state.read_poses(state.stale(fast_frames))
     stats.swept_boxes += len(fast)
     t1 = time.perf_counter()
@@ -122,6 +121,11 @@ def sweep(cid, tables, state, dt, fit_tolerance, tolerances, penetration, stats,
         allowed = set(map(tuple, pairs.tolist()))
         hits = [h for h in hits if h[:2] in allowed]
     return Sweep(rows, boxes, pairs, hits) if hits else None
+
+
+def _at_clamp(v):
+    """Whether a velocity's norm is pybullet's default velocity clamp."""
+    return abs(math.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]) - MAX_VELOCITY) <= 1e-9 * MAX_VELOCITY
 
 
 def _partners(cid, tables, bounds, slack, exclude):
