@@ -312,8 +312,8 @@ class BoxCCD:
 
     def _spin(self):
         """The fastest spin (rad/s) of the frames of the contact the world was taken back to."""
-        frames = list(self._acted)
-        return float(np.max(np.linalg.norm(self._state.rows[frames, ANGULAR_VELOCITY], axis=1))) if frames else 0.0
+        spins = self._state.rows[list(self._acted), ANGULAR_VELOCITY].tolist()
+        return max((math.sqrt(x * x + y * y + z * z) for x, y, z in spins), default=0.0)
 
     def _within_clamp(self, piece, h):
         """After a partial step of ``piece`` seconds: if the impact at its start spun a body of

@@ -237,29 +237,20 @@ class Contacts:
         carried = [f for f, tr in track.items() if tr.status == _CARRIED]
         stopped = [f for f, tr in track.items() if tr.status == _STOPPED and tr.stop_time <= tau]
         # Every other frame is on Bullet's path (a fixed base the user gave a velocity too).
-        frames = np.flatnonzero(tables.kind == FREE)
-        frames = np.concatenate([frames[~np.isin(frames, carried + stopped)],
-                                 [f for f in state.with_velocity if f in state.kinematic]]).astype(np.int64)
-        rows = state.rows[frames]
-        v, w = rows[:, VELOCITY].copy(), rows[:, ANGULAR_VELOCITY].copy()
-        free = tables.kind[frames] == FREE
-        if state.twist0 is not None:
-            known = free & ~np.isin(frames, list(struck))
-            v0, w0 = state.twist0[frames, :3], state.twist0[frames, 3:]
-            v[known] = v0[known] + tau * (v[known] - v0[known])
-            w[known] = w0[known] + tau * (w[known] - w0[known])
-            still = ~(rows[:, VELOCITY].any(axis=1) | rows[:, ANGULAR_VELOCITY].any(axis=1) |
-                      state.twist0[frames].any(axis=1))
-        else:
-            known, still = np.zeros(len(frames), bool), np.zeros(len(frames), bool)
-        v[free & ~known] -= gravity * (1.0 - tau) * dt
+        off = set(carried + stopped)
+        free = [f for f in tables.free_frames if f not in off]
+        frames = free + [f for f in state.with_velocity if f in state.kinematic]
+        whole = state.twist0 is None
+        modes = [2 if whole or f in struck else 1 for f in free] + [0] * (len(frames) - len(free))
+        v, w, still = state.sweeper.velocities_at(dt, tau, frames, modes, state.twist0, gravity)
         # A body standing still before and after the step stays where it is (placing it
         # would wake a sleeping one).
-        frames, v, w = frames[~still], v[~still], w[~still]
-        state.read_poses(state.stale(frames.tolist()))
-        poses = _core.frame_poses(state.rows, dt, frames, np.full(len(frames), tau))
-        for f, pose, vf, wf in zip(frames.tolist(), poses, v, w):
-            place(self.cid, tables, state, f, pose, vf, wf)
+        keep = [k for k, s in enumerate(still) if not s]
+        frames = [frames[k] for k in keep]
+        state.read_poses(state.stale(frames))
+        poses = _core.frame_poses(state.rows, dt, np.array(frames, dtype=np.int64), np.full(len(frames), tau))
+        for f, pose, k in zip(frames, poses, keep):
+            place(self.cid, tables, state, f, pose, v[k], w[k])
         for f in carried + stopped:
             vf, wf = paths.twist(f)
             place(self.cid, tables, state, f, pose7(paths.com(f, 1.0)), vf, wf)

@@ -31,6 +31,7 @@ import re
 import sys
 import warnings
 from dataclasses import dataclass, field
+from functools import cached_property
 
 import numpy as np
 import pybullet
@@ -94,6 +95,11 @@ class Tables:
     def moving(self) -> list:
         """Frames whose velocity is read at every step (every kind but STATIC)."""
         return np.flatnonzero(self.kind != STATIC).tolist()
+
+    @cached_property
+    def free_frames(self) -> list:
+        """The free bodies' frames."""
+        return np.flatnonzero(self.kind == FREE).tolist()
 
 
 class World:

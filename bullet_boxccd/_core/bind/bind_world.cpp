@@ -184,6 +184,25 @@ nb::object sweeper_fast(Sweeper &s, double dt, nb::handle frames, nb::handle twi
     return nb::make_tuple(to_list(f.boxes), f.slack, to_list(f.frames));
 }
 
+// (v (n, 3), w (n, 3), [still]) of Sweeper::velocities_at; frames and modes are lists,
+// twist0 an (n_frames, 6) array or None, gravity (3,).
+nb::tuple sweeper_velocities_at(const Sweeper &s, double dt, double tau, nb::handle frames, nb::handle modes,
+                                std::optional<In<-1, 6>> twist0, const In<3> &gravity) {
+    const std::vector<int64_t> ids = int_list(frames), kinds = int_list(modes);
+    const size_t n = ids.size();
+    if (kinds.size() != n) throw nb::value_error("velocities_at: one mode per frame");
+    if (twist0 && twist0->shape(0) != s.n_frames()) throw nb::value_error("velocities_at: twist0 is not one row per frame");
+    const std::vector<int8_t> mode(kinds.begin(), kinds.end());
+    auto [v, v_owner] = new_buffer<double>(3 * n);
+    auto [w, w_owner] = new_buffer<double>(3 * n);
+    std::vector<uint8_t> still(n);
+    s.velocities_at(dt, tau, ids.data(), mode.data(), n, twist0 ? twist0->data() : nullptr, gravity.data(), v, w,
+                    still.data());
+    nb::list rest;
+    for (uint8_t x : still) rest.append(bool(x));
+    return nb::make_tuple(Out<double, -1, 3>(v, {n, 3}, v_owner), Out<double, -1, 3>(w, {n, 3}, w_owner), rest);
+}
+
 // (path rows, swept bounds) of the boxes (a list of box indices).
 nb::tuple sweeper_rows(const Sweeper &s, double dt, nb::handle boxes) {
     const std::vector<int64_t> ids = int_list(boxes);
@@ -272,6 +291,8 @@ void bind_world(nb::module_ &m) {
         .def("fast", &sweeper_fast, nb::arg("dt"), nb::arg("frames") = nb::none(), nb::arg("twists") = nb::none())
         .def("slack", &Sweeper::slack, nb::arg("dt"),
              "The farthest a box with a finite sweep reach moves in a step of dt (m).")
+        .def("velocities_at", &sweeper_velocities_at, nb::arg("dt"), nb::arg("tau"), nb::arg("frames"),
+             nb::arg("modes"), nb::arg("twist0").none(), nb::arg("gravity"))
         .def("rows", &sweeper_rows, nb::arg("dt"), nb::arg("boxes"))
         .def("touches", &sweeper_touches, nb::arg("dt"), nb::arg("boxes"), nb::arg("n_moving"),
              nb::arg("all_others"), nb::arg("fit_tolerance"), nb::arg("tolerances"), nb::arg("penetration"),

@@ -126,6 +126,27 @@ double Sweeper::slack(double dt) const {
     return out;
 }
 
+void Sweeper::velocities_at(double dt, double tau, const int64_t *frames, const int8_t *mode, size_t n,
+                            const double *twist0, const double *gravity, double *v, double *w, uint8_t *still) const {
+    for (size_t k = 0; k < n; ++k) {
+        check_index(frames[k], n_frames(), "frame");
+        const double *after = state_.data() + kFrameStateSize * frames[k] + FrameState::kVelocity;  // v, w
+        const double *before = twist0 ? twist0 + 6 * frames[k] : nullptr;
+        bool rest = before != nullptr;
+        for (int i = 0; i < 6; ++i) rest = rest && after[i] == 0.0 && before[i] == 0.0;
+        still[k] = rest;
+        double out[6];
+        for (int i = 0; i < 6; ++i) out[i] = after[i];
+        if (mode[k] == 1 && before) {
+            for (int i = 0; i < 6; ++i) out[i] = before[i] + tau * (after[i] - before[i]);
+        } else if (mode[k] != 0) {
+            for (int i = 0; i < 3; ++i) out[i] -= gravity[i] * (1.0 - tau) * dt;
+        }
+        std::copy(out, out + 3, v + 3 * k);
+        std::copy(out + 3, out + 6, w + 3 * k);
+    }
+}
+
 void Sweeper::check_boxes(const std::vector<int64_t> &boxes) const {
     for (const int64_t b : boxes) check_index(b, n_, "box");
 }

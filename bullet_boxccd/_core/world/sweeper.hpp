@@ -108,6 +108,16 @@ class Sweeper {
     // given an infinite reach are swept elsewhere, on paths of their own).
     double slack(double dt) const;
 
+    // The velocities the n frames (checked) leave step fraction tau of a step of dt
+    // with when the world is taken back there: mode[k] 0 keeps the frame's velocities
+    // after the step (a kinematic frame); 1 takes them between twist0 (n_frames x 6:
+    // the velocities the step began with) and those after it, in proportion; 2 keeps
+    // those after it less the rest of the step's gravity (a body struck as the step
+    // began; mode 1 is taken as 2 when twist0 is null). still[k]: the frame was at
+    // rest before and after the step (only known with twist0). v, w: (n, 3) each.
+    void velocities_at(double dt, double tau, const int64_t *frames, const int8_t *mode, size_t n,
+                       const double *twist0, const double *gravity, double *v, double *w, uint8_t *still) const;
+
     // Throws std::out_of_range for a box index out of range.
     void check_boxes(const std::vector<int64_t> &boxes) const;
 
