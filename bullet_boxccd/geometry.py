@@ -18,11 +18,25 @@ import numpy as np
 from . import _core
 from ._arrays import as_float_array
 
-__all__ = ["Box", "feature_name", "SIGNS"]
+__all__ = ["Box", "BoxPairs", "feature_name", "SIGNS"]
 
 # The corners of a box as sign triples (-1: lo, +1: hi), in the order of Box.vertices():
 # (-,-,-), (-,-,+), (-,+,-), ...
 SIGNS = np.array(list(product((-1, 1), repeat=3)), dtype=float)
+
+
+@dataclass
+class BoxPairs:
+    """Box pairs as the solver's batch takes them: each box by its corners and its motion's
+    coefficients; one pair with (3,) corners and (3, 4, 4) coefficients, n pairs with a
+    leading axis of n."""
+
+    lo_a: np.ndarray
+    hi_a: np.ndarray
+    coeffs_a: np.ndarray
+    lo_b: np.ndarray
+    hi_b: np.ndarray
+    coeffs_b: np.ndarray
 
 
 def feature_name(signs) -> str:

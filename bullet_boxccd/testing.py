@@ -23,7 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .geometry import SIGNS  # vertex order of Box.vertices()
+from .geometry import SIGNS, BoxPairs  # SIGNS: vertex order of Box.vertices()
 
 __all__ = ["SIGNS", "Case", "Reference", "box_size", "check_answer", "local_vertices", "motion_at", "mp_bisect",
            "mp_gap", "placed_vertices", "reference", "sat_gap", "world_vertices"]
@@ -93,13 +93,9 @@ def box_size(coeffs, lo, hi, t):
 
 
 @dataclass
-class Case:
-    lo_a: np.ndarray
-    hi_a: np.ndarray
-    coeffs_a: np.ndarray
-    lo_b: np.ndarray
-    hi_b: np.ndarray
-    coeffs_b: np.ndarray
+class Case(BoxPairs):
+    """One query: a box pair over [t0, t1]."""
+
     t0: float
     t1: float
 

@@ -31,25 +31,20 @@ Families (the knob in brackets):
 
 from __future__ import annotations
 
-from typing import NamedTuple
+from dataclasses import dataclass, replace
 
 import numpy as np
 
-from ..geometry import SIGNS
+from ..geometry import SIGNS, BoxPairs
 from ..motion import axis_angle_matrix
 
 __all__ = ["FAMILIES", "QueryBatch", "make_batch"]
 
 
-class QueryBatch(NamedTuple):
+@dataclass
+class QueryBatch(BoxPairs):
     """``n`` box pairs: corners (n, 3), motions (n, 3, 4, 4), one shared ``t_range``."""
 
-    lo_a: np.ndarray
-    hi_a: np.ndarray
-    coeffs_a: np.ndarray
-    lo_b: np.ndarray
-    hi_b: np.ndarray
-    coeffs_b: np.ndarray
     t_range: tuple
     param: np.ndarray
     param_name: str
@@ -60,9 +55,8 @@ class QueryBatch(NamedTuple):
 
     def take(self, idx) -> "QueryBatch":
         """The queries at ``idx`` (an index array or a mask)."""
-        return self._replace(lo_a=self.lo_a[idx], hi_a=self.hi_a[idx], coeffs_a=self.coeffs_a[idx],
-                             lo_b=self.lo_b[idx], hi_b=self.hi_b[idx], coeffs_b=self.coeffs_b[idx],
-                             param=self.param[idx])
+        return replace(self, lo_a=self.lo_a[idx], hi_a=self.hi_a[idx], coeffs_a=self.coeffs_a[idx],
+                       lo_b=self.lo_b[idx], hi_b=self.hi_b[idx], coeffs_b=self.coeffs_b[idx], param=self.param[idx])
 
 
 # ---------------------------------------------------------------- vectorised motions
