@@ -162,7 +162,7 @@ class BoxCCD:
         if not (math.isfinite(self._dt) and self._dt > 0.0):
             raise InvalidInputError(f"the world's fixedTimeStep is {self._dt!r}; expected a finite number > 0 "
                                     "(p.setTimeStep)")
-        if self._substeps > 1 and j.pd_control:
+        if self._substeps > 1 and j.pd_control and self._watched:
             self._warn(("pd",), "with numSubSteps > 1 BoxCCD takes the substeps itself: torques of PD_CONTROL and "
                                 "STABLE_PD_CONTROL motors are computed again for each substep")
 
@@ -223,7 +223,9 @@ class BoxCCD:
         else:
             events = self._full_step()
             self.stats.steps += 1
-        self._quiet = self._substeps == 1 and not self._state.with_velocity
+        # A world where no moving box can meet another is stepped by pybullet alone (its own
+        # substeps too); one with substeps or a kinematic velocity otherwise takes the full path.
+        self._quiet = not self._state.with_velocity and (self._substeps == 1 or not self._watched)
         self._epoch = last_serial()
         self.world.journal.impulses.clear()  # pybullet cleared them
         return events
@@ -234,6 +236,10 @@ class BoxCCD:
         dt, n = self._dt, self._substeps
         if n == 1:
             return self._step(dt, 0.0, dt)
+        if not self._watched and not self._state.with_velocity:  # nothing to sweep: pybullet's own substeps
+            raw.stepSimulation(physicsClientId=self.cid)
+            self._known, self._moves_seen = False, self.world.journal.last_move
+            return []
         events = []
         with self._substepping(dt, n):
             for k in range(n):
