@@ -664,3 +664,34 @@ def test_a_boxccd_warning_points_at_the_users_line(cid):
     mine = [w for w in caught if issubclass(w.category, BoxCCDWarning)]
     assert len(mine) == 2
     assert all(os.path.samefile(w.filename, __file__) for w in mine), [(w.filename, w.lineno) for w in mine]
+
+
+def test_a_time_step_set_again_alike_is_no_change_of_the_world():
+    """A script that sets its time step (or gravity) every step, to the same value, keeps
+    BoxCCD's steps quiet; a new value, by either call, is a change."""
+    import pybullet as p
+
+    from bullet_boxccd.pybullet_ccd import _hooks
+
+    cid = p.connect(p.DIRECT)
+    try:
+        j = _hooks.journal(cid)
+        p.setTimeStep(0.01, physicsClientId=cid)
+        p.setGravity(0, 0, -10, physicsClientId=cid)
+        seen = j.params
+        for _ in range(3):
+            p.setTimeStep(0.01, physicsClientId=cid)
+            p.setPhysicsEngineParameter(fixedTimeStep=0.01, physicsClientId=cid)
+            p.setGravity(0, 0, -10, physicsClientId=cid)
+        assert j.params == seen
+        p.setPhysicsEngineParameter(fixedTimeStep=0.02, physicsClientId=cid)
+        assert j.params > seen
+        seen = j.params
+        p.setTimeStep(0.01, physicsClientId=cid)  # back to 0.01 through the other call: a change
+        assert j.params > seen
+        seen = j.params
+        p.setGravity(0, 0, -9.81, physicsClientId=cid)
+        assert j.params > seen
+        assert p.getPhysicsEngineParameters(physicsClientId=cid)["fixedTimeStep"] == 0.01
+    finally:
+        p.disconnect(cid)

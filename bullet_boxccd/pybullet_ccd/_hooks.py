@@ -90,6 +90,7 @@ class Journal:
     last_body: int = 0  # the latest serial in ``bodies``
     created: set = field(default_factory=set)  # bodies made through the wrapped functions (provenance)
     params: int = 0  # fixedTimeStep / numSubSteps / gravity changed
+    param_values: dict = field(default_factory=dict)  # those settings as last set (set again alike: no change)
     num_substeps: int = 0  # as last set through setPhysicsEngineParameter (0: never set)
     contact_erp: float = CONTACT_ERP  # as last set through setPhysicsEngineParameter (pybullet reports none)
     max_velocity: dict = field(default_factory=dict)  # body -> maxJointVelocity set through changeDynamics
@@ -525,8 +526,7 @@ def _set_engine_parameter(cid, a, result):
         j.num_substeps = int(substeps)
     if a.get("contactERP") is not None:
         j.contact_erp = float(a["contactERP"])
-    if substeps is not None or a.get("fixedTimeStep") is not None:
-        j.params = next(_serial)
+    _params_set(j, {k: a[k] for k in ("fixedTimeStep", "numSubSteps") if a.get(k) is not None})
 
 
 def _set_contact_erp(cid, a, result):
@@ -534,7 +534,25 @@ def _set_contact_erp(cid, a, result):
 
 
 def _set_params(cid, a, result):
-    journal(cid).params = next(_serial)
+    named = _named(a)
+    if "timeStep" in named:  # setTimeStep sets what setPhysicsEngineParameter calls fixedTimeStep
+        named["fixedTimeStep"] = named.pop("timeStep")
+    _params_set(journal(cid), named)
+
+
+def _params_set(j, values):
+    """Note settings of the time step, substeps or gravity; those set to what they were
+    last set to change nothing (a script that sets its time step every step)."""
+    changed = False
+    for k, v in values.items():
+        try:
+            v = tuple(float(x) for x in v) if isinstance(v, (list, tuple)) else float(v)
+        except (TypeError, ValueError):
+            v = None  # pybullet took it; what it means is read back at the next step
+        changed |= v is None or j.param_values.get(k) != v
+        j.param_values[k] = v
+    if changed:
+        j.params = next(_serial)
 
 
 def _moved(cid, a, result):
