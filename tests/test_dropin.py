@@ -466,3 +466,31 @@ def test_named_columns_agree_with_the_core():
     assert {k: slice(*v) for k, v in core["path_row"].items()} == layout.PATH_ROW
     assert max(s.stop for s in layout.FRAME_STATE.values()) == layout.STATE_SIZE
     assert max(s.stop for s in layout.PATH_ROW.values()) == layout.ROW_SIZE
+
+
+def test_a_force_applied_every_step_acts_once_a_step_through_quiet_steps_and_partial_steps(cid):
+    """The user's external force, applied before every step, is given again to each
+    partial step of the step it was applied in, and to no other: after many quiet steps
+    (nothing fast) and then a step with an impact elsewhere, the pushed cube moves as
+    pybullet moves it with no impact at all."""
+    def run(shoot):
+        reset(cid)
+        wall = box(cid, [0.005, 1, 1], [5, 0, 0], mass=0)
+        pushed = box(cid, [0.05] * 3, [0, 5, 0])
+        bullet = box(cid, [0.05] * 3, [4, 0, 0])
+        p.changeDynamics(wall, -1, restitution=1.0, physicsClientId=cid)
+        p.changeDynamics(bullet, -1, restitution=1.0, physicsClientId=cid)
+        ccd = BoxCCD(cid)
+        for k in range(40):
+            if k == 30 and shoot:
+                p.resetBaseVelocity(bullet, [300, 0, 0], [0, 0, 0], physicsClientId=cid)
+            p.applyExternalForce(pushed, -1, [2.0, 0, 0], [0, 5, 0], p.WORLD_FRAME, physicsClientId=cid)
+            ccd.step()
+        return np.array(p.getBaseVelocity(pushed, physicsClientId=cid)[0]), ccd.stats.partial_steps, \
+            p.getBasePositionAndOrientation(bullet, physicsClientId=cid)[0][0]
+
+    v_ref, partial_ref, _ = run(False)
+    v, partial, x_bullet = run(True)
+    assert partial_ref == 0 and partial >= 1 and x_bullet < 5  # the bullet struck the wall and came back
+    assert np.allclose(v_ref, [2.0 * 40 * DT, 0, 0], rtol=1e-9)  # F t / m, pybullet alone
+    np.testing.assert_allclose(v, v_ref, rtol=1e-6, atol=1e-9)

@@ -166,6 +166,22 @@ class BoxCCD:
             self._warn(("pd",), "with numSubSteps > 1 BoxCCD takes the substeps itself: torques of PD_CONTROL and "
                                 "STABLE_PD_CONTROL motors are computed again for each substep")
 
+    def _velocities_set(self):
+        """Where the user set velocities or joint states since the last step, the velocities
+        the step starts from are not those read after the last one: a free body's are read
+        again now; an articulated body's start is not known; after restoreState, none is."""
+        j, t, seen = self.world.journal, self.world.tables, self._moves_seen
+        if j.last_move <= seen or not self._known:
+            return
+        if j.restored > seen:
+            self._known = False
+            return
+        changed = {b for b, s in j.velocity_set.items() if s > seen} | {b for b, s in j.moved.items() if s > seen}
+        for b in changed & set(self._chains.bodies):
+            self._chains.bodies[b].base_state = None
+        frames = [f for b in changed - set(self._chains.bodies) for f in t.frames_of.get(b, ())]
+        self._state.read_twists(frames)
+
     def _user_moves(self):
         """Static frames the user moved since the last step, those given a velocity, and
         every frame the user teleported."""
@@ -262,7 +278,7 @@ class BoxCCD:
         then the rest of it again from each contact the world is taken back to, until the
         step is done. ``stepped``: pybullet took the step already, the velocities are
         read, and ``fast`` are the fast boxes (``Sweeper.fast``; None: none)."""
-        self._known &= self.world.journal.last_move <= self._moves_seen  # the user changed no velocity
+        self._velocities_set()
         moved_static, with_velocity, user_moved = self._user_moves()
         t_start, elapsed, piece, events = time.perf_counter(), 0.0, h, []
         self._acted, self._struck, self._presses = set(), set(), {}

@@ -79,6 +79,11 @@ class FrameState:
     def read_velocities(self):
         self.sweeper.put_twists(self.moving, self.twists())
 
+    def read_twists(self, frames):
+        """Read the velocities of ``frames`` now (the user set them)."""
+        if frames:
+            self.sweeper.put_twists(frames, [self._twist[f]() for f in frames])
+
     def read_poses(self, frames):
         if frames:
             pose = self._pose
