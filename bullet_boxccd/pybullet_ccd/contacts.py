@@ -35,6 +35,7 @@ from the change on, as in Box2D's time-of-impact loop.
 from __future__ import annotations
 
 import heapq
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -376,7 +377,7 @@ class Contacts:
         else:
             target = self.penetration
         deeper = end_depth - (max(d0, 0.0) if initial else 0.0)
-        wrong = deeper > self.depth_tolerance or _goes_wrong(w, s_touch, c, target)
+        wrong = deeper > self.depth_tolerance or _goes_wrong(w, pair, s_touch, c, target)
         if action != "push" and not wrong:
             return info
         s_act = _core.paths_first_depth(*pair, s_touch, target)
@@ -511,7 +512,7 @@ def bounce(cid, tables, d, k, v, v_k, normal):
 
 
 # ---------------------------------------------------------------- geometry
-def _goes_wrong(w, s_touch, contact, target):
+def _goes_wrong(w, pair, s_touch, contact, target):
     """Whether pybullet would resolve the pair (rows w over their window, first touch at
     s_touch, ``contact`` with unit normal n from A towards B) wrongly from where it ends.
 
@@ -520,10 +521,9 @@ def _goes_wrong(w, s_touch, contact, target):
     face it is), and fragile once B has gone in past half the pair's depth along n (the
     centres then near each other along n: the next overlap can flip it). Apart: wrong if
     they overlapped by ``target`` or more on the way (a contact pybullet never saw: passed
-    through, or struck and left)."""
-    if not np.all(np.isfinite(contact.normal)):
+    through, or struck and left). ``pair``: the rows as RowBoxPaths."""
+    if not all(math.isfinite(x) for x in contact.normal.tolist()):
         return True
-    pair = _core.RowBoxPath(w[0]), _core.RowBoxPath(w[1])
     depth, axis = _core.paths_separation(*pair, 1.0)
     if depth <= 0.0:
         return not np.isnan(_core.paths_first_depth(*pair, s_touch, target))

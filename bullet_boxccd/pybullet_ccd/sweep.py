@@ -14,7 +14,6 @@ A kinematic frame's jump (the user's teleport before the step) is swept apart, i
 
 from __future__ import annotations
 
-import math
 import time
 from dataclasses import dataclass
 
@@ -82,8 +81,7 @@ def sweep(cid, tables, state, dt, fit_tolerance, tolerances, penetration, stats,
             return None
     fast, slack, fast_frames = fast
     if at_clamp is not None:
-        clamped = [f for f, twist in zip(fast_frames, state.rows[fast_frames, TWIST].tolist())
-                   if _at_clamp(twist[:3]) or _at_clamp(twist[3:])]
+        clamped = sweeper.at_speed(fast_frames, MAX_VELOCITY, 1e-9)
         if clamped:
             at_clamp(clamped)  # it checks the body's own clamp
     state.read_poses(state.stale(fast_frames))
@@ -121,11 +119,6 @@ def sweep(cid, tables, state, dt, fit_tolerance, tolerances, penetration, stats,
         allowed = set(map(tuple, pairs.tolist()))
         hits = [h for h in hits if h[:2] in allowed]
     return Sweep(rows, boxes, pairs, hits) if hits else None
-
-
-def _at_clamp(v):
-    """Whether a velocity's norm is pybullet's default velocity clamp."""
-    return abs(math.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]) - MAX_VELOCITY) <= 1e-9 * MAX_VELOCITY
 
 
 def _partners(cid, tables, bounds, slack, exclude):

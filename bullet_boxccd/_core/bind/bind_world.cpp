@@ -289,6 +289,13 @@ void bind_world(nb::module_ &m) {
         .def("put_twists", &put_twists, nb::arg("frames"), nb::arg("twists"))
         .def("put_poses", &put_poses, nb::arg("frames"), nb::arg("poses"))
         .def("fast", &sweeper_fast, nb::arg("dt"), nb::arg("frames") = nb::none(), nb::arg("twists") = nb::none())
+        .def(
+            "at_speed",
+            [](const Sweeper &s, nb::handle frames, double speed, double rel_tol) {
+                return to_list(s.at_speed(int_list(frames), speed, rel_tol));
+            },
+            nb::arg("frames"), nb::arg("speed"), nb::arg("rel_tol"),
+            "Those of the frames whose speed or spin is `speed` to within rel_tol of it.")
         .def("slack", &Sweeper::slack, nb::arg("dt"),
              "The farthest a box with a finite sweep reach moves in a step of dt (m).")
         .def("velocities_at", &sweeper_velocities_at, nb::arg("dt"), nb::arg("tau"), nb::arg("frames"),

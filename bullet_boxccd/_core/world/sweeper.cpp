@@ -116,6 +116,17 @@ Sweeper::Fast Sweeper::fast(double dt) const {
     return out;
 }
 
+std::vector<int64_t> Sweeper::at_speed(const std::vector<int64_t> &frames, double speed, double rel_tol) const {
+    std::vector<int64_t> out;
+    for (const int64_t f : frames) {
+        check_index(f, n_frames(), "frame");
+        const double *row = state_.data() + kFrameStateSize * f;
+        const double v = norm3(row + FrameState::kVelocity), w = norm3(row + FrameState::kAngularVelocity);
+        if (std::fabs(v - speed) <= rel_tol * speed || std::fabs(w - speed) <= rel_tol * speed) out.push_back(f);
+    }
+    return out;
+}
+
 double Sweeper::slack(double dt) const {
     double out = 0.0;
     for (size_t i = 0; i < n_; ++i) {

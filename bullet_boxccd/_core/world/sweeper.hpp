@@ -104,6 +104,10 @@ class Sweeper {
     };
     Fast fast(double dt) const;
 
+    // Those of the frames (checked) whose speed or spin is `speed` to within
+    // rel_tol of it (pybullet's velocity clamp).
+    std::vector<int64_t> at_speed(const std::vector<int64_t> &frames, double speed, double rel_tol) const;
+
     // The farthest a box with a finite sweep reach moves in a step of dt (the boxes
     // given an infinite reach are swept elsewhere, on paths of their own).
     double slack(double dt) const;
