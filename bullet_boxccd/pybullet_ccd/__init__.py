@@ -232,7 +232,7 @@ class BoxCCD:
             raw.stepSimulation(physicsClientId=cid)
             self._known = True
             fast = st.sweeper.fast(self._dt, st.moving, st.twists()) if st.moving else None
-            if fast is None and (not self._chains.watched or self._chains.idle(self._dt)):
+            if fast is None and (not self._chains.watched or self._chains.idle(self._dt, st)):
                 self.world.journal.impulses.clear()
                 return []
             events = self._step(self._dt, 0.0, self._dt, stepped=True, fast=fast)

@@ -71,7 +71,7 @@ class _Body:
     base_idle: tuple = None  # (radius, reach): the base's farthest box point, its boxes' smallest sweep reach
     link_idle: tuple = None  # ([link], [radius], [reach]): the same for each link with boxes
     alone: bool = False  # no box of it can meet another tracked box (none in other bodies, no self pairs)
-    fast: bool = False  # whether a box of it was swept in the last step
+    fast: bool = False  # whether a fast box of it was judged against a partner in the last step
 
 
 class Articulated:
@@ -121,25 +121,45 @@ class Articulated:
         self.boxes = np.array(sorted(i for rec in self.bodies.values() for _, i in rec.boxes), dtype=np.int64)
 
     # ------------------------------------------------------------ reading
-    def idle(self, dt) -> bool:
+    def idle(self, dt, state) -> bool:
         """Whether no box of a body that can meet another box moved farther than its sweep
-        reach in the step of dt just taken, as ``find`` decides it, from one read per body:
-        every box link's velocities after the step (getLinkStates; the base's by
-        getBaseVelocity), a point of a link moving by at most (|v| + |w| r) dt, r its
-        farthest box point from the link's centre of mass. A body with a box swept in the
-        last step is taken to move still (it is read whole at once)."""
-        cid = self.cid
+        reach in the step of dt just taken near anything it can meet, from one read per
+        body: every box link's velocities after the step (getLinkStates; the base's by
+        getBaseVelocity), a point of a link moving by at most m = (|v| + |w| r) dt, r its
+        farthest box point from the link's centre of mass (as ``find`` decides it, on the
+        chord). A body with such a box is still idle when pybullet's broad phase finds
+        nothing it can meet within twice those moves of its fast links' bounds (getAABB;
+        and the farthest anything else moved): a robot swinging in free space. A body with a
+        box judged against a partner in the last step is taken to move still (it is read
+        whole at once)."""
+        cid, fast, widen = self.cid, [], 0.0
         for rec in self.watched:
             if rec.fast:
                 return False
+            lo, hi = [math.inf] * 3, [-math.inf] * 3
             if rec.base_idle is not None:
                 v, w = raw.getBaseVelocity(rec.body, physicsClientId=cid)
-                if _moves(v, w, rec.base_idle[0], dt) > rec.base_idle[1]:
-                    return False
+                r, reach = rec.base_idle
+                m = _moves(v, w, r, dt)
+                widen = max(widen, 2.0 * m)
+                if m > reach:
+                    _grow(lo, hi, raw.getAABB(rec.body, -1, physicsClientId=cid), 2.0 * m)
             if rec.link_idle:
                 states = raw.getLinkStates(rec.body, rec.link_idle[0], computeLinkVelocity=1, physicsClientId=cid)
-                for s, r, reach in zip(states, rec.link_idle[1], rec.link_idle[2]):
-                    if _moves(s[6], s[7], r, dt) > reach:
+                for link, s, r, reach in zip(rec.link_idle[0], states, rec.link_idle[1], rec.link_idle[2]):
+                    m = _moves(s[6], s[7], r, dt)
+                    widen = max(widen, 2.0 * m)
+                    if m > reach:
+                        _grow(lo, hi, raw.getAABB(rec.body, link, physicsClientId=cid), 2.0 * m)
+            if lo[0] <= hi[0]:
+                fast.append((rec, lo + hi))
+        if fast:
+            widen = max(widen, state.sweeper.slack(dt))
+            t = self.tables
+            for rec, box in fast:
+                for key in overlap_query(cid, box, widen):
+                    g = t.index.get(key)
+                    if g is not None and (int(t.body[g]) != rec.body or rec.ancestors is not None):
                         return False
         for rec in self.bodies.values():
             rec.base_state = None  # not read this step: the next step's start is not known
@@ -187,8 +207,8 @@ class Articulated:
         t = self.tables
         fast = []
         for rec in self.watched:
+            rec.fast = False  # until a fast box of it is judged against a partner
             moves = rec.motion.fast_boxes(rec.box_links, rec.box_X, rec.box_half, rec.box_reach)
-            rec.fast = bool(moves)
             fast += [(rec, *rec.boxes[k], bounds) for k, _, bounds in moves]
         if not fast:
             return []
@@ -210,6 +230,7 @@ class Articulated:
                 other = other or self._path(self.bodies[int(t.body[g])], j, dt)
                 if _core.paths_relative_move(path, other) <= min(reach[i], reach[j]):
                     continue  # slow against each other (a link and its neighbour, a foot and the ground it rests on)
+                rec.fast = True
                 hit = self._judge(path, other, fit_tolerance, tolerances, penetration, stats)
                 if hit is not None:
                     found.append((*hit, rec, f, g, (path, other)))
@@ -430,6 +451,13 @@ def _goes_wrong(a, b, s_act):
         return along < 0.0
     reach = np.abs(Xa[:3, :3].T @ n) @ a.half_extents + np.abs(Xb[:3, :3].T @ n) @ b.half_extents
     return float(np.dot(axis1, n)) < 0.0 or along < 0.5 * reach
+
+
+def _grow(lo, hi, aabb, by):
+    """Grow bounds lo, hi (lists of 3) to hold pybullet's bounds ``aabb`` widened by ``by``."""
+    for d in range(3):
+        lo[d] = min(lo[d], aabb[0][d] - by)
+        hi[d] = max(hi[d], aabb[1][d] + by)
 
 
 def _moves(v, w, r, dt):
