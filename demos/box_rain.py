@@ -17,18 +17,7 @@ import pybullet as p
 import pybullet_data
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from _common import (  # noqa: E402
-    box_body,
-    demo_setup,
-    draw_static,
-    figure,
-    legend,
-    outline,
-    panel,
-    print_table,
-    save,
-    simulate,
-)
+import _common as demo  # noqa: E402
 
 from bullet_boxccd import BoxCCD  # noqa: E402
 
@@ -51,7 +40,7 @@ def run(cid, use_ccd, n, seed):
     p.setGravity(0, 0, -9.81, physicsClientId=cid)
     data = pybullet_data.getDataPath()
     tray = p.loadURDF(os.path.join(data, "tray/traybox.urdf"), physicsClientId=cid)
-    lid = box_body(cid, [0.36, 0.36, 0.01], [0, 0, 0.13], mass=0.0, color=(0.6, 0.6, 0.7, 0.4))
+    lid = demo.box_body(cid, [0.36, 0.36, 0.01], [0, 0, 0.13], mass=0.0, color=(0.6, 0.6, 0.7, 0.4))
     rng = np.random.default_rng(seed)
     pieces = []
     side = int(np.ceil(np.sqrt(n)))
@@ -64,7 +53,7 @@ def run(cid, use_ccd, n, seed):
         p.resetBaseVelocity(b, v, rng.uniform(-30, 30, 3).tolist(), physicsClientId=cid)
         pieces.append(b)
     ccd = BoxCCD(cid) if use_ccd else None
-    contacts, timer, track = simulate(cid, ccd, 240, track=pieces, static=[tray, lid])
+    contacts, timer, track = demo.simulate(cid, ccd, 240, track=pieces, static=[tray, lid])
     escaped = sum(not inside(p.getBasePositionAndOrientation(b, physicsClientId=cid)[0]) for b in pieces)
     return escaped, contacts, timer, track
 
@@ -83,7 +72,7 @@ def draw_pieces(ax, track, axes, steps):
                 label="a piece's centre, every step (1/240 s) for 1 s")
         for i in range(min(steps + 1, end)):
             for corners in track.boxes(i, body):
-                ax.add_patch(Polygon(outline(corners, axes), closed=True, fill=False, edgecolor="#2e86ab", lw=0.8,
+                ax.add_patch(Polygon(demo.outline(corners, axes), closed=True, fill=False, edgecolor="#2e86ab", lw=0.8,
                                      alpha=0.3 + 0.5 * i / steps, ls="--" if i == 0 else "-", zorder=3))
         if out is not None:
             ax.plot(xy[out - 1:, 0], xy[out - 1:, 1], color="#d1495b", lw=1.4, zorder=4,
@@ -95,26 +84,26 @@ def draw_pieces(ax, track, axes, steps):
 def picture(path, args, first, escaped):
     """Run 1 without and with BoxCCD: the tray cut at y = 0 from the side, and from above."""
     n = args.pieces * args.runs
-    fig, axes = figure(f"{args.pieces} lego and jenga pieces thrown at up to 100 m/s into tray/traybox.urdf under "
+    fig, axes = demo.figure(f"{args.pieces} lego and jenga pieces thrown at up to 100 m/s into tray/traybox.urdf under "
                        f"a 2 cm lid, 240 Hz, gravity, 1 s\nrun 1 of {args.runs}: side view (tray and lid cut at y = 0) "
                        "and top view", 2, 2, size=(12.0, 9.6), height_ratios=(0.6, 1.2))
     for col, use in enumerate((False, True)):
         track = first[use][3]
         title = f"{'BoxCCD' if use else 'plain pybullet'}: {escaped[use]}/{n} left the tray"
-        xz = panel(axes[0, col], title + " (side)", "side", (-0.6, 0.6), (-0.25, 0.35), bad=escaped[use] > 0)
+        xz = demo.panel(axes[0, col], title + " (side)", "side", (-0.6, 0.6), (-0.25, 0.35), bad=escaped[use] > 0)
         section = [c for c in track.static if c[:, 1].min() < 0 < c[:, 1].max()]
-        draw_static(axes[0, col], section, xz, "tray and lid (static)", alpha=0.7)
+        demo.draw_static(axes[0, col], section, xz, "tray and lid (static)", alpha=0.7)
         draw_pieces(axes[0, col], track, xz, 6)
-        xy = panel(axes[1, col], title + " (top)", "top", (-0.6, 0.6), (-0.6, 0.6), bad=escaped[use] > 0)
-        draw_static(axes[1, col], track.static[:5], xy, "tray and lid (static)", alpha=0.35)  # the tray's 5 boxes
-        draw_static(axes[1, col], track.static[5:], xy, "the lid's edge in the top view", fill=False)
+        xy = demo.panel(axes[1, col], title + " (top)", "top", (-0.6, 0.6), (-0.6, 0.6), bad=escaped[use] > 0)
+        demo.draw_static(axes[1, col], track.static[:5], xy, "tray and lid (static)", alpha=0.35)  # the tray's 5 boxes
+        demo.draw_static(axes[1, col], track.static[5:], xy, "the lid's edge in the top view", fill=False)
         draw_pieces(axes[1, col], track, xy, 6)
-    legend(fig, axes, ncol=3)
-    return save(fig, path)
+    demo.legend(fig, axes, ncol=3)
+    return demo.save(fig, path)
 
 
 def main(argv=None):
-    args, cid = demo_setup(__doc__, argv, OPTIONS)
+    args, cid = demo.demo_setup(__doc__, argv, OPTIONS)
     rows, escaped, first = [], {}, {}
     for use in (False, True):
         out = [run(cid, use, args.pieces, seed) for seed in range(args.runs)]
@@ -122,7 +111,7 @@ def main(argv=None):
         first[use] = out[0]
         rows.append(("BoxCCD" if use else "plain pybullet", f"{escaped[use]}/{args.pieces * args.runs}",
                      sum(o[1] for o in out), f"{np.median([o[2].us_per_step for o in out]):.0f}"))
-    print_table(f"box rain: {args.pieces} lego/jenga pieces at up to 100 m/s in tray/traybox.urdf, 240 Hz",
+    demo.print_table(f"box rain: {args.pieces} lego/jenga pieces at up to 100 m/s in tray/traybox.urdf, 240 Hz",
                 ("run", "left the tray", "CCD contacts", "us/step (median)"), rows)
     assert escaped[True] == 0, "a piece left the tray with BoxCCD"
     assert escaped[False] > 0, "no piece left the tray without BoxCCD: the scene shows nothing"

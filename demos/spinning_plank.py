@@ -18,20 +18,7 @@ import numpy as np
 import pybullet as p
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from _common import (  # noqa: E402
-    BODY,
-    box_body,
-    demo_setup,
-    draw_path,
-    draw_static,
-    figure,
-    legend,
-    panel,
-    pick,
-    print_table,
-    save,
-    simulate,
-)
+import _common as demo  # noqa: E402
 
 from bullet_boxccd import BoxCCD  # noqa: E402
 
@@ -41,12 +28,12 @@ OPTIONS = {"phases": (40, "runs per cube position: the plank's start angle sprea
 def run(cid, use_ccd, phase, radius):
     p.resetSimulation(physicsClientId=cid)
     p.setTimeStep(1 / 240, physicsClientId=cid)
-    cube = box_body(cid, [0.05] * 3, [radius, 0, 0], mass=0.0, color=(0.6, 0.6, 0.7, 1))
+    cube = demo.box_body(cid, [0.05] * 3, [radius, 0, 0], mass=0.0, color=(0.6, 0.6, 0.7, 1))
     yaw = np.pi / 2 + phase * 0.83  # the plank starts across the cube's direction
-    plank = box_body(cid, [0.5, 0.01, 0.1], [0, 0, 0], orn=p.getQuaternionFromEuler([0, 0, yaw]))
+    plank = demo.box_body(cid, [0.5, 0.01, 0.1], [0, 0, 0], orn=p.getQuaternionFromEuler([0, 0, yaw]))
     p.resetBaseVelocity(plank, [0, 0, 0], [0, 0, -200.0], physicsClientId=cid)
     ccd = BoxCCD(cid) if use_ccd else None
-    contacts, timer, track = simulate(cid, ccd, 8, track=[plank], static=[cube])  # about one turn
+    contacts, timer, track = demo.simulate(cid, ccd, 8, track=[plank], static=[cube])  # about one turn
     spin = p.getBaseVelocity(plank, physicsClientId=cid)[1][2]
     return abs(spin + 200.0) < 1e-6, contacts, timer, track
 
@@ -56,26 +43,26 @@ def picture(path, args, runs, passed):
     from matplotlib.patches import Circle
 
     radius = next((r for r in (0.3, 0.45) if passed[(r, False)]), 0.3)
-    k = pick(runs[(radius, False)], lambda r: r[0])
-    fig, axes = figure(f"1 m plank spinning at 200 rad/s (0.83 rad per step at 240 Hz) by a static 0.1 m cube at "
+    k = demo.pick(runs[(radius, False)], lambda r: r[0])
+    fig, axes = demo.figure(f"1 m plank spinning at 200 rad/s (0.83 rad per step at 240 Hz) by a static 0.1 m cube at "
                        f"{radius} m\ntop view of run {k + 1} of {args.phases}, the plank after every step",
                        1, 2, size=(12.0, 7.0))
     for ax, use in zip(axes[0], (False, True)):
         name = "BoxCCD" if use else "plain pybullet"
         n = passed[(0.3, use)] + passed[(0.45, use)]
         track = runs[(radius, use)][k][3]
-        xy = panel(ax, f"{name}: {n}/{2 * args.phases} passed through", "top", (-0.8, 0.8), (-0.8, 0.8),
+        xy = demo.panel(ax, f"{name}: {n}/{2 * args.phases} passed through", "top", (-0.8, 0.8), (-0.8, 0.8),
                    bad=n > 0)
         ax.add_patch(Circle((0, 0), 0.5, fill=False, ls=":", color="0.5", label="circle swept by the plank's ends"))
-        draw_static(ax, track.static, xy, "cube (static)")
-        draw_path(ax, track, 0, xy, BODY[1], "plank after each step, numbered at one end (dashed: start)",
+        demo.draw_static(ax, track.static, xy, "cube (static)")
+        demo.draw_path(ax, track, 0, xy, demo.BODY[1], "plank after each step, numbered at one end (dashed: start)",
                   anchor=(0.56, 0.0, 0.0), spacing=0.02, line=False)
-    legend(fig, axes)
-    return save(fig, path)
+    demo.legend(fig, axes)
+    return demo.save(fig, path)
 
 
 def main(argv=None):
-    args, cid = demo_setup(__doc__, argv, OPTIONS)
+    args, cid = demo.demo_setup(__doc__, argv, OPTIONS)
     rows, passed, runs = [], {}, {}
     for radius in (0.3, 0.45):
         for use in (False, True):
@@ -83,7 +70,7 @@ def main(argv=None):
             passed[(radius, use)] = sum(o[0] for o in out)
             rows.append((f"{radius} m", "BoxCCD" if use else "plain pybullet", f"{passed[(radius, use)]}/{args.phases}",
                          sum(o[1] for o in out), f"{np.median([o[2].us_per_step for o in out]):.0f}"))
-    print_table("spinning plank: 200 rad/s, 240 Hz", ("cube at", "run", "passed through", "CCD contacts",
+    demo.print_table("spinning plank: 200 rad/s, 240 Hz", ("cube at", "run", "passed through", "CCD contacts",
                                                        "us/step (median)"), rows)
     assert passed[(0.3, True)] == 0 and passed[(0.45, True)] == 0, "BoxCCD let the plank through"
     assert passed[(0.3, False)] + passed[(0.45, False)] > 0, "plain pybullet never passed through"

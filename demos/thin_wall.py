@@ -14,21 +14,7 @@ import numpy as np
 import pybullet as p
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from _common import (  # noqa: E402
-    BODY,
-    box_body,
-    demo_setup,
-    draw_path,
-    draw_static,
-    figure,
-    legend,
-    off_panel_note,
-    panel,
-    pick,
-    print_table,
-    save,
-    simulate,
-)
+import _common as demo  # noqa: E402
 
 from bullet_boxccd import BoxCCD  # noqa: E402
 
@@ -42,8 +28,8 @@ OPTIONS = {
 def scene(cid, phase, speed, thickness, spin):
     p.resetSimulation(physicsClientId=cid)
     p.setTimeStep(1 / 240, physicsClientId=cid)
-    wall = box_body(cid, [thickness / 2, 0.5, 0.5], [0, 0, 0], mass=0.0, color=(0.6, 0.6, 0.7, 1))
-    cube = box_body(cid, [0.05] * 3, [-0.3 - phase * speed / 240, 0.1, 0.05])
+    wall = demo.box_body(cid, [thickness / 2, 0.5, 0.5], [0, 0, 0], mass=0.0, color=(0.6, 0.6, 0.7, 1))
+    cube = demo.box_body(cid, [0.05] * 3, [-0.3 - phase * speed / 240, 0.1, 0.05])
     p.resetBaseVelocity(cube, [speed, 0, 0], spin, physicsClientId=cid)
     return wall, cube
 
@@ -51,32 +37,32 @@ def scene(cid, phase, speed, thickness, spin):
 def run(cid, use_ccd, phase, speed, thickness, spin):
     wall, cube = scene(cid, phase, speed, thickness, spin)
     ccd = BoxCCD(cid) if use_ccd else None
-    contacts, timer, track = simulate(cid, ccd, int(240 / speed) + 30, track=[cube], static=[wall])
+    contacts, timer, track = demo.simulate(cid, ccd, int(240 / speed) + 30, track=[cube], static=[wall])
     return p.getBasePositionAndOrientation(cube, physicsClientId=cid)[0][0] > 0.0, contacts, timer, track
 
 
 def picture(path, args, runs, tunneled):
     """One phase (the first that plain pybullet lets through), without and with BoxCCD, from above."""
-    k = pick(runs[False], lambda r: r[0])
+    k = demo.pick(runs[False], lambda r: r[0])
     step = args.speed / 240
-    fig, axes = figure(f"{args.speed:g} m/s cube (0.1 m) against a {args.thickness * 1000:g} mm wall at 240 Hz "
+    fig, axes = demo.figure(f"{args.speed:g} m/s cube (0.1 m) against a {args.thickness * 1000:g} mm wall at 240 Hz "
                        f"({step * 100:.0f} cm per step)\ntop view of run {k + 1} of {args.phases}, "
                        "the cube's outline after every step", 1, 2, size=(13.0, 6.0))
     for ax, use in zip(axes[0], (False, True)):
         name = "BoxCCD" if use else "plain pybullet"
         track = runs[use][k][3]
-        xy = panel(ax, f"{name}: {tunneled[use]}/{args.phases} tunneled", "top", (-0.5 - 2.2 * step, 0.3 + 1.7 * step),
-                   (-1.2, 0.6), bad=tunneled[use] > 0)
-        draw_static(ax, track.static, xy, f"wall ({args.thickness * 1000:g} mm thick, static)")
-        draw_path(ax, track, 0, xy, BODY[0], "cube after each step, numbered (dashed: start)", spacing=0.1,
+        xy = demo.panel(ax, f"{name}: {tunneled[use]}/{args.phases} tunneled", "top",
+                        (-0.5 - 2.2 * step, 0.3 + 1.7 * step), (-1.2, 0.6), bad=tunneled[use] > 0)
+        demo.draw_static(ax, track.static, xy, f"wall ({args.thickness * 1000:g} mm thick, static)")
+        demo.draw_path(ax, track, 0, xy, demo.BODY[0], "cube after each step, numbered (dashed: start)", spacing=0.1,
                   number_offset=(0, 14))
-        off_panel_note(ax, track, 0, xy, BODY[0], "the cube")
-    legend(fig, axes)
-    return save(fig, path)
+        demo.off_panel_note(ax, track, 0, xy, demo.BODY[0], "the cube")
+    demo.legend(fig, axes)
+    return demo.save(fig, path)
 
 
 def main(argv=None):
-    args, cid = demo_setup(__doc__, argv, OPTIONS)
+    args, cid = demo.demo_setup(__doc__, argv, OPTIONS)
     rows, results, runs = [], {}, {}
     for use in (False, True):
         rng = np.random.default_rng(0)  # the same phases and spins for both runs
@@ -91,7 +77,7 @@ def main(argv=None):
         results[use] = tunneled
         rows.append(("BoxCCD" if use else "plain pybullet", f"{tunneled}/{args.phases}", contacts,
                      f"{np.median(us):.0f}"))
-    print_table(f"thin wall: 0.1 m cube at {args.speed:g} m/s, wall {args.thickness * 1000:g} mm, 240 Hz",
+    demo.print_table(f"thin wall: 0.1 m cube at {args.speed:g} m/s, wall {args.thickness * 1000:g} mm, 240 Hz",
                 ("run", "tunneled", "CCD contacts", "us/step (median)"), rows)
     assert results[True] == 0, "BoxCCD let the cube through"
     assert results[False] > 0, "plain pybullet did not tunnel: the scene shows nothing"

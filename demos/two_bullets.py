@@ -15,19 +15,7 @@ import numpy as np
 import pybullet as p
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from _common import (  # noqa: E402
-    BODY,
-    box_body,
-    demo_setup,
-    draw_path,
-    figure,
-    legend,
-    panel,
-    pick,
-    print_table,
-    save,
-    simulate,
-)
+import _common as demo  # noqa: E402
 
 from bullet_boxccd import BoxCCD  # noqa: E402
 
@@ -40,13 +28,13 @@ def run(cid, use_ccd, phase, angle):
     p.setTimeStep(1 / 240, physicsClientId=cid)
     d = np.array([np.cos(angle), np.sin(angle), 0.0])
     gap = 1.0 + phase * 2 * SPEED / 240
-    a = box_body(cid, [0.05] * 3, [-gap / 2, 0, 0], restitution=1.0)
-    b = box_body(cid, [0.05] * 3, (gap / 2 * d).tolist(), restitution=1.0, color=(0.2, 0.4, 0.8, 1), mass=2.0)
+    a = demo.box_body(cid, [0.05] * 3, [-gap / 2, 0, 0], restitution=1.0)
+    b = demo.box_body(cid, [0.05] * 3, (gap / 2 * d).tolist(), restitution=1.0, color=(0.2, 0.4, 0.8, 1), mass=2.0)
     p.resetBaseVelocity(a, [SPEED, 0, 0], [0, 0, 0], physicsClientId=cid)
     p.resetBaseVelocity(b, (-SPEED * d).tolist(), [0, 0, 0], physicsClientId=cid)
     momentum0 = 1.0 * np.array([SPEED, 0, 0]) + 2.0 * (-SPEED * d)
     ccd = BoxCCD(cid) if use_ccd else None
-    contacts, timer, track = simulate(cid, ccd, int(gap / SPEED * 240) + 10, track=[a, b])
+    contacts, timer, track = demo.simulate(cid, ccd, int(gap / SPEED * 240) + 10, track=[a, b])
     va = np.array(p.getBaseVelocity(a, physicsClientId=cid)[0])
     vb = np.array(p.getBaseVelocity(b, physicsClientId=cid)[0])
     momentum = 1.0 * va + 2.0 * vb
@@ -64,11 +52,12 @@ def spacetime(ax, track, title, bad, through):
     ms = 1000 * np.arange(len(track.poses)) / 240
     for body in (0, 1):
         x = track.poses[:, body, 0]
-        ax.plot(x, ms, color=BODY[body], lw=0.8, alpha=0.6)
+        ax.plot(x, ms, color=demo.BODY[body], lw=0.8, alpha=0.6)
         for i, (xi, ti) in enumerate(zip(x, ms)):
-            ax.add_patch(Rectangle((xi - 0.05, ti - 0.6), 0.1, 1.2, facecolor=BODY[body], edgecolor=BODY[body],
-                                   alpha=0.35 + 0.65 * i / (len(ms) - 1), ls="--" if i == 0 else "-"))
-        ax.plot([], [], color=BODY[body], lw=6, alpha=0.7, label=f"{CUBES[body]} after each step (dashed: start)")
+            ax.add_patch(Rectangle((xi - 0.05, ti - 0.6), 0.1, 1.2, facecolor=demo.BODY[body],
+                                   edgecolor=demo.BODY[body], alpha=0.35 + 0.65 * i / (len(ms) - 1),
+                                   ls="--" if i == 0 else "-"))
+        ax.plot([], [], color=demo.BODY[body], lw=6, alpha=0.7, label=f"{CUBES[body]} after each step (dashed: start)")
     ax.set_xlim(-2.6, 2.6)
     ax.set_ylim(-2, min(ms[-1], 26) + 2)
     ax.set_xlabel("x (m)")
@@ -82,11 +71,11 @@ def spacetime(ax, track, title, bad, through):
 
 def picture(path, args, runs, result):
     """For each approach one run (the first that plain pybullet lets through), without and with BoxCCD."""
-    fig, axes = figure(f"two 0.1 m cubes at {SPEED:g} m/s each (83 cm per step at 240 Hz), restitution 1\n"
+    fig, axes = demo.figure(f"two 0.1 m cubes at {SPEED:g} m/s each (83 cm per step at 240 Hz), restitution 1\n"
                        "top: head-on, x against time; bottom: crossing at 30 degrees, top view, the cubes after "
                        "every step", 2, 2, size=(12.0, 9.0))
     for row, angle in enumerate((0.0, np.radians(30))):
-        k = pick(runs[(angle, False)], lambda r: r[0])
+        k = demo.pick(runs[(angle, False)], lambda r: r[0])
         for ax, use in zip(axes[row], (False, True)):
             n = result[(angle, use)][0]
             title = (f"{'head-on' if angle == 0 else '30 degrees'}, {'BoxCCD' if use else 'plain pybullet'}: "
@@ -95,16 +84,16 @@ def picture(path, args, runs, result):
             if angle == 0:
                 spacetime(ax, track, title, n > 0, runs[(angle, use)][k][0])
                 continue
-            xy = panel(ax, title, "top", (-1.8, 1.8), (-1.1, 0.6), bad=n > 0)
+            xy = demo.panel(ax, title, "top", (-1.8, 1.8), (-1.1, 0.6), bad=n > 0)
             for body in (0, 1):
-                draw_path(ax, track, body, xy, BODY[body], f"{CUBES[body]} after each step (dashed: start)",
+                demo.draw_path(ax, track, body, xy, demo.BODY[body], f"{CUBES[body]} after each step (dashed: start)",
                           spacing=0.2, number_offset=(0, 11))
-    legend(fig, axes, ncol=2)
-    return save(fig, path)
+    demo.legend(fig, axes, ncol=2)
+    return demo.save(fig, path)
 
 
 def main(argv=None):
-    args, cid = demo_setup(__doc__, argv, OPTIONS)
+    args, cid = demo.demo_setup(__doc__, argv, OPTIONS)
     rows, result, runs = [], {}, {}
     for angle in (0.0, np.radians(30)):
         for use in (False, True):
@@ -113,7 +102,7 @@ def main(argv=None):
             rows.append((f"{np.degrees(angle):.0f} deg", "BoxCCD" if use else "plain pybullet",
                          f"{result[(angle, use)][0]}/{args.phases}", sum(o[1] for o in out),
                          f"{100 * result[(angle, use)][1]:.2f}%", f"{np.median([o[2].us_per_step for o in out]):.0f}"))
-    print_table("two bullets: 0.1 m cubes at 200 m/s each, 240 Hz", (
+    demo.print_table("two bullets: 0.1 m cubes at 200 m/s each, 240 Hz", (
         "approach", "run", "passed through", "CCD contacts", "momentum error (max)", "us/step (median)"), rows)
     for angle in (0.0, np.radians(30)):
         assert result[(angle, True)][0] == 0, "BoxCCD let the cubes pass through each other"
