@@ -45,7 +45,8 @@ def pytest_addoption(parser):
 
 
 def _broken_core(mode):
-    """Stand-ins for _core.solve, solve_batch, first_touches and path_contact."""
+    """Stand-ins for _core.solve, solve_batch, first_touches and the box paths' contact queries
+    (paths_contact, paths_first_touch, paths_window_contact)."""
     from bullet_boxccd.solver import Contact, Feature, Outcome
 
     def contact(t):
@@ -68,11 +69,22 @@ def _broken_core(mode):
         out = (tau, np.full(len(pairs), int(code), dtype=np.int8)) if states else (tau,)
         return (*out, len(pairs))
 
-    def path_contact(boxes, lo, hi, tol):
+    def paths_window_contact(a, b, lo, hi, tol):
         _queried[0] = True
         return None if mode == "never" else contact(float(lo))
 
-    return dict(solve=solve, solve_batch=solve_batch, first_touches=first_touches, path_contact=path_contact)
+    def paths_first_touch(a, b, fit_tolerance, tol, state=False):
+        _queried[0] = True
+        t, code = (np.nan, Outcome.SEPARATED) if mode == "never" else (0.0, Outcome.INITIAL)
+        return (t, int(code), 1) if state else (t, 1)
+
+    def paths_contact(a, b, fit_tolerance, tol):
+        _queried[0] = True
+        return (np.nan, 1, None) if mode == "never" else (0.0, 1, contact(0.0))
+
+    return dict(solve=solve, solve_batch=solve_batch, first_touches=first_touches,
+                paths_window_contact=paths_window_contact, paths_first_touch=paths_first_touch,
+                paths_contact=paths_contact)
 
 
 def pytest_configure(config):

@@ -181,7 +181,7 @@ class Articulated:
             rec.qdot = np.array([x for s in js for x in s[1]], dtype=np.float64)
             rec.motion = _core.ChainMotion(rec.chain.core, rec.base_state, q, rec.qdot, dt)
             rec.paths = {}
-            state.rows[rec.frame_index] = rec.motion.frame_rows(rec.link_of_frame, dt)
+            state.rows[rec.frame_index] = rec.motion.frame_rows(rec.link_of_frame)
             state.fresh.update(rec.frames)
 
     def _path(self, rec, box, dt):

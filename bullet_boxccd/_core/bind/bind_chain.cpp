@@ -74,15 +74,14 @@ Out<double, 7> base_pose(const ChainMotion &motion, double tau) {
 }
 
 // (n, 13) frame-state rows of the given links (-1: the base): ChainMotion::chord_state.
-Out<double, -1, 13> frame_rows(const ChainMotion &motion, const Ints &links, double dt) {
+Out<double, -1, 13> frame_rows(const ChainMotion &motion, const Ints &links) {
     expect(links, "links", {-1});
-    if (!(dt > 0.0) || !std::isfinite(dt)) throw nb::value_error("dt must be finite and > 0");
     const size_t n = links.shape(0);
     for (size_t k = 0; k < n; ++k)
         if (links.data()[k] != -1) check_link(motion.chain(), int(links.data()[k]));
     double *out;
     auto a = new_array<-1, 13>({n, 13}, out);
-    for (size_t k = 0; k < n; ++k) motion.chord_state(int(links.data()[k]), dt, out + 13 * k);
+    for (size_t k = 0; k < n; ++k) motion.chord_state(int(links.data()[k]), out + 13 * k);
     return a;
 }
 
@@ -108,15 +107,6 @@ nb::tuple link_fit(const ChainMotion &motion, int link, double lo, double hi, do
     auto coeffs = new_array<3, 4, 4>({3, 4, 4}, out);
     const FitBound b = motion.fit(link, lo, hi, out);
     return nb::make_tuple(coeffs, b.point(r), b.rotation, b.sweep(r));
-}
-
-// (point bound at r, rotation bound, sweep at r).
-nb::tuple link_fit_bound(const ChainMotion &motion, int link, double lo, double hi, double r) {
-    check_link(motion.chain(), link);
-    check_piece(lo, hi);
-    check_radius(r);
-    const FitBound b = motion.fit_bound(link, lo, hi);
-    return nb::make_tuple(b.point(r), b.rotation, b.sweep(r));
 }
 
 // [(k, move, [lo (3), hi (3)])] of the boxes (links, X_CS (n, 4, 4), half (n, 3),
@@ -172,12 +162,11 @@ void bind_chain(nb::module_ &m) {
         .def("link_pose", &link_pose, nb::arg("link"), nb::arg("tau"))
         .def("link_poses", &link_poses, nb::arg("tau"))
         .def("joint_positions", &joint_positions, nb::arg("tau"))
-        .def("frame_rows", &frame_rows, nb::arg("links"), nb::arg("dt"),
+        .def("frame_rows", &frame_rows, nb::arg("links"),
              "(n, 13) the links' (-1: base) poses after the step and the chords of their steps as velocities.")
         .def("fast_boxes", &py_fast_boxes, nb::arg("links"), nb::arg("X_CS"), nb::arg("half"), nb::arg("reach"),
              "[(k, move, [lo (3), hi (3)])] of the boxes on links (-1: base) that move farther than their reach.")
-        .def("fit", &link_fit, nb::arg("link"), nb::arg("lo"), nb::arg("hi"), nb::arg("r") = 0.0)
-        .def("fit_bound", &link_fit_bound, nb::arg("link"), nb::arg("lo"), nb::arg("hi"), nb::arg("r") = 0.0);
+        .def("fit", &link_fit, nb::arg("link"), nb::arg("lo"), nb::arg("hi"), nb::arg("r") = 0.0);
     nb::class_<LinkBoxPath, BoxPath>(m, "LinkBoxPath", "A box fixed to a link, on the link's path.")
         .def("__init__",
              [](LinkBoxPath *self, const ChainMotion &motion, int link, const Doubles &X_CS, const Doubles &half) {

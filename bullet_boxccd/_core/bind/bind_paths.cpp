@@ -158,8 +158,8 @@ nb::tuple py_paths_contact(const BoxPath &a, const BoxPath &b, double fit_tolera
     return nb::make_tuple(t, solves, hit_result(h));
 }
 
-// Like solve: a Contact (whose outcome says what happened, NON_FINITE for a path
-// that is not finite) or None: window_contact over [lo, hi].
+// Like solve: a Contact (whose outcome says what happened) or None: window_contact
+// over [lo, hi].
 nb::object paths_window_contact(const BoxPath &a, const BoxPath &b, double lo, double hi, const Tolerances &tol) {
     if (!(0.0 <= lo && lo <= hi && hi <= 1.0))
         throw nb::value_error(
@@ -193,7 +193,6 @@ double paths_first_depth(const BoxPath &a, const BoxPath &b, double from, double
 
 void bind_paths(nb::module_ &m) {
     m.def("layouts", &layouts);
-    m.def("bullet_step_angle", &bullet_step_angle, nb::arg("speed"), nb::arg("dt"));
     m.def("swept_bounds", &py_swept_bounds, nb::arg("boxes"));
     m.def("row_poses", &py_row_poses, nb::arg("rows"), nb::arg("taus"));
     m.def("window_rows", &py_window_rows, nb::arg("rows"), nb::arg("lo"), nb::arg("hi"));
@@ -204,8 +203,6 @@ void bind_paths(nb::module_ &m) {
         .def("poses", &path_poses, nb::arg("taus"))
         .def("fit", &path_fit, nb::arg("lo"), nb::arg("hi"))
         .def("pieces", &path_pieces, nb::arg("fit_tolerance"))
-        .def("travel", [](const BoxPath &p, double lo, double hi) { check_piece(lo, hi); return p.travel(lo, hi); },
-             nb::arg("lo"), nb::arg("hi"), "How far any point of the box can be, over [lo, hi], from its place at the middle.")
         .def("bounds", &bounds_of, nb::arg("pieces") = 4, "(6,) world bounds (lo, hi) of the box over the step.")
         .def_prop_ro("half_extents", &path_half_extents, nb::rv_policy::move);
     nb::class_<RowBoxPath, BoxPath>(m, "RowBoxPath", "A box on a free frame's path row.")

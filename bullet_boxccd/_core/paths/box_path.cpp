@@ -15,9 +15,7 @@ constexpr double kInf = std::numeric_limits<double>::infinity();
 
 RowBoxPath::RowBoxPath(const double *row) {
     std::copy(row, row + PathRow::kSize, row_);
-    const double *X_CS = row_ + PathRow::kBoxInFrame;
-    const double t[3] = {X_CS[3], X_CS[7], X_CS[11]};
-    reach_ = norm3(t) + norm3(row_ + PathRow::kHalfExtents);
+    reach_ = reach_radius(row_ + PathRow::kBoxInFrame, row_ + PathRow::kHalfExtents);
     finite_ = std::all_of(row_, row_ + PathRow::kSize, [](double x) { return std::isfinite(x); });
 }
 
@@ -217,8 +215,9 @@ double first_touch(const BoxPath &a, const BoxPath &b, double fit_tolerance, con
         const double lo = double(k) / n, hi = double(k + 1) / n;
         bool fitted;
         Hit h = solve_piece(a, b, lo, hi, 0.0, tol, contact != nullptr, fitted);
-        // No proven fit (too fast even for 64 pieces, or a fit overflowed): early, never late.
-        if (!fitted) {  // a cap reached (kMaxFitPieces): early, not proven a contact
+        // No proven fit (too fast even for kMaxFitPieces pieces, or a fit overflowed): early,
+        // never late, and not proven a contact.
+        if (!fitted) {
             outcome = at_start ? Outcome::Initial : Outcome::StepCap;
             if (contact) contact->outcome = outcome, contact->t = lo, contact->s = at_start ? 0.0 : kNaN;
             return lo;

@@ -54,7 +54,6 @@ class RowBoxPath : public BoxPath {
     bool finite() const override { return finite_; }
     double travel(double lo, double hi) const override;
     double reach() const override { return reach_; }
-    const double *row() const { return row_; }
 
   private:
     double row_[PathRow::kSize];

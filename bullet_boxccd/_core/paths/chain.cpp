@@ -335,7 +335,7 @@ void ChainMotion::link_poses(double tau, double *poses) const {
     }
 }
 
-void ChainMotion::chord_state(int link, double dt, double *row) const {
+void ChainMotion::chord_state(int link, double *row) const {
     double p0[7], *p1 = row;
     if (link == -1) {
         base_pose(0.0, p0);
@@ -349,8 +349,8 @@ void ChainMotion::chord_state(int link, double dt, double *row) const {
     const double identity[16] = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1}, unit[3] = {1, 1, 1};
     path_row_between(p0, p1, identity, unit, path);
     for (int i = 0; i < 3; ++i) {
-        p1[7 + i] = path[PathRow::kDisplacement + i] / dt;
-        p1[10 + i] = path[PathRow::kAxis + i] * path[PathRow::kAngle] / dt;
+        p1[7 + i] = path[PathRow::kDisplacement + i] / dt_;
+        p1[10 + i] = path[PathRow::kAxis + i] * path[PathRow::kAngle] / dt_;
     }
 }
 
@@ -495,8 +495,7 @@ LinkBoxPath::LinkBoxPath(const ChainMotion &motion, int link, const double *X_CS
         throw std::invalid_argument("half extents must be > 0");
     std::copy(X_CS, X_CS + 16, X_CS_);
     std::copy(half, half + 3, half_);
-    const double t[3] = {X_CS[3], X_CS[7], X_CS[11]};
-    reach_ = norm3(t) + norm3(half);
+    reach_ = reach_radius(X_CS, half);
 }
 
 void LinkBoxPath::pose(double tau, double *X_WS) const {
@@ -542,7 +541,7 @@ int LinkBoxPath::pieces(double fit_tolerance) const {
     const double allowed = fit_tolerance * std::min({half_[0], half_[1], half_[2]});
     const double error = b.point(reach_);
     int n = 1;
-    while (n < 64 && !(b.rotation < double(n) * n * n && error / (double(n) * n * n - b.rotation) <= allowed)) n *= 2;
+    while (n < kMaxFitPieces && !(b.rotation < double(n) * n * n && error / (double(n) * n * n - b.rotation) <= allowed)) n *= 2;
     while (n > 1) {
         const int half_n = n / 2;
         bool fits = true;
@@ -566,10 +565,9 @@ std::vector<FastBox> fast_boxes(const ChainMotion &motion, size_t n, const int64
         // its frame's chord (the path's own bulge is of second order in the turn).
         if (links[k] != chord_link) {
             chord_link = links[k];
-            motion.chord_state(int(chord_link), dt, chord);
+            motion.chord_state(int(chord_link), chord);
         }
-        const double t[3] = {X[3], X[7], X[11]};
-        const double move = step_reach(chord, dt, norm3(t) + norm3(h));
+        const double move = step_reach(chord, dt, reach_radius(X, h));
         if (!(move > reach[k])) continue;
         FastBox b{int64_t(k), move, {}, {}};
         const int pieces = move < std::min({h[0], h[1], h[2]}) ? 1 : 4;

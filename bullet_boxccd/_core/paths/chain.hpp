@@ -123,9 +123,9 @@ class ChainMotion {
     FitBound fit_bound(int link, double lo, double hi) const;
     // The frame-state row (FrameState, 13) of link `link` (-1: the base): its pose
     // after the step, then the velocities (v, w) that carry its pose before the step
-    // to it in dt linearly and about a fixed axis at a constant rate: the chord of
-    // its step (the turn the short way round, as path_row_between takes it).
-    void chord_state(int link, double dt, double *row) const;
+    // to it in the step's dt linearly and about a fixed axis at a constant rate: the
+    // chord of its step (the turn the short way round, as path_row_between takes it).
+    void chord_state(int link, double *row) const;
 
   private:
     struct JointStep {  // a joint's motion over the step

@@ -8,6 +8,10 @@
 
 namespace boxccd {
 
+double reach_radius(const double *X_CS, const double *half) {
+    return norm3(Vec3{X_CS[3], X_CS[7], X_CS[11]}) + norm3(half);
+}
+
 namespace {
 
 using fs = FrameState;
@@ -15,16 +19,14 @@ using pr = PathRow;
 
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
-// Farthest point of the box from its frame's origin.
-double reach_radius(const double *box) {
-    const double *X_CS = box + pr::kBoxInFrame;
-    return norm3(Vec3{X_CS[3], X_CS[7], X_CS[11]}) + norm3(box + pr::kHalfExtents);
-}
+// reach_radius of a path row's box.
+double row_reach(const double *box) { return reach_radius(box + pr::kBoxInFrame, box + pr::kHalfExtents); }
 
 // Column i of a row-major 4x4 pose's rotation.
 Vec3 column(const double *X, int i) { return {X[i], X[4 + i], X[8 + i]}; }
 
 }  // namespace
+
 
 // X(tau) = [Rot(axis, (tau - 1) angle) R1, p1 + (tau - 1) dv] X_CS.
 void row_pose(const double *b, double tau, double *X) {
@@ -111,7 +113,7 @@ double pose_depth(const double *X_WA, const double *ha, const double *X_WB, cons
 
 void swept_bounds(const double *box, double *lo, double *hi) {
     const double *h = box + pr::kHalfExtents;
-    const double r = reach_radius(box);
+    const double r = row_reach(box);
     const double q = 0.25 * box[pr::kAngle];
     const double sag = r * q * q / 8.0;
     for (int i = 0; i < 3; ++i) {
@@ -246,7 +248,7 @@ double fit_path(const double *box, double lo, double hi, double *coeffs) {
 
 int fit_pieces(const double *box, double fit_tolerance) {
     const double *h = box + pr::kHalfExtents, phi = box[pr::kAngle];
-    const double err1 = kFitErrorPerCubedAngle * phi * phi * phi * reach_radius(box);
+    const double err1 = kFitErrorPerCubedAngle * phi * phi * phi * row_reach(box);
     const double allowed = fit_tolerance * std::min({h[0], h[1], h[2]});
     int pieces = 1;
     while (pieces < kMaxFitPieces && err1 > allowed * pieces * pieces * pieces) pieces *= 2;

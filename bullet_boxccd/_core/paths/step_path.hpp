@@ -11,10 +11,7 @@
 // 3.2.7 to 1e-15).
 #pragma once
 
-#include <cstdint>
 #include <limits>
-#include <utility>
-#include <vector>
 
 #include "solver/box_ccd.hpp"
 
@@ -49,6 +46,9 @@ double bullet_step_angle(double speed, double dt);
 // How far a point at distance `radius` from the frame's origin can move in the
 // step: (|v| + |w| radius) dt (Bullet turns by at most |w| dt).
 double step_reach(const double *state, double dt, double radius);
+
+// The farthest point of a box (X_CS: 4x4 in its frame, half extents) from its frame's origin.
+double reach_radius(const double *X_CS, const double *half);
 
 // The path row of a box at X_CS (4x4) with half extents `half` on a frame with `state`.
 void path_row(const double *state, double dt, const double *X_CS, const double *half, double *row);

@@ -183,7 +183,7 @@ void Query::contact_geometry(const int8_t *sig, Hit &hit) {
         const double uu = dot3(u, u), vv = dot3(v, v), uv = dot3(u, v), uw = dot3(u, w), vw = dot3(v, w);
         const double den = uu * vv - uv * uv;
         double la = 0.0, mu = 0.0;
-        if (den > kParallelEdges2 * uu * vv) {  // parallel edges: any point of the overlap; take the centres
+        if (den > kParallel2 * uu * vv) {  // parallel edges: any point of the overlap; take the centres
             la = (uv * vw - vv * uw) / den;
             mu = (uu * vw - uv * uw) / den;
         }

@@ -61,10 +61,9 @@ constexpr double kSwitchRepeat = 4.0;
 constexpr double kParallel = 1e-9;
 // The same test on squares, |a x b|^2 <= kParallel2 |a|^2 |b|^2 (no square root).
 constexpr double kParallel2 = kParallel * kParallel;
-// Edge-edge contact point: edges closer to parallel than this (relative
-// |u x v|^2 / (|u|^2 |v|^2), i.e. 1e-9 rad) have no unique closest points; the
+// The same bound serves the edge-edge contact point: edges closer to parallel than
+// kParallel2 (relative |u x v|^2 / (|u|^2 |v|^2)) have no unique closest points; the
 // midpoint of the overlap is taken instead.
-constexpr double kParallelEdges2 = kParallel * kParallel;
 
 // Octant-switch proofs (route.cpp): the switch values p and p' at an interval's
 // middle come from the generators there; p' sums twice as many products, each

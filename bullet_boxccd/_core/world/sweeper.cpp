@@ -73,8 +73,18 @@ void frame_poses(const double *state, size_t n_frames, double dt, const int64_t 
 long first_touches(const double *rows, const int64_t *pairs, size_t n, double fit_tolerance, const Tolerances &tol,
                    double penetration, double creep, double *out, int8_t *state, int64_t *counts) {
     long solves = 0;
+    std::vector<RowBoxPath> paths;  // one per row a pair names (rows are shared by a fast box's pairs)
+    std::vector<int64_t> path_of;
+    for (size_t k = 0; k < 2 * n; ++k) {
+        if (size_t(pairs[k]) >= path_of.size()) path_of.resize(size_t(pairs[k]) + 1, -1);
+        if (path_of[size_t(pairs[k])] < 0) {
+            path_of[size_t(pairs[k])] = int64_t(paths.size());
+            paths.emplace_back(rows + kPathBoxSize * pairs[k]);
+        }
+    }
     for (size_t k = 0; k < n; ++k) {
-        const RowBoxPath a(rows + kPathBoxSize * pairs[2 * k]), b(rows + kPathBoxSize * pairs[2 * k + 1]);
+        const RowBoxPath &a = paths[size_t(path_of[size_t(pairs[2 * k])])];
+        const RowBoxPath &b = paths[size_t(path_of[size_t(pairs[2 * k + 1])])];
         const double depth0 = path_depth(a, b, 0.0);
         Outcome o;
         out[k] = first_touch(a, b, fit_tolerance, tol, solves, o, depth0);
