@@ -41,15 +41,16 @@ import numpy as np
 import pybullet
 
 from .._arrays import as_float_array
+from ..motion import pose_matrix
 from ..solver import DEFAULT_TOLERANCES, InvalidInputError, Tolerances
 from ._hooks import MAX_VELOCITY, last_serial, raw, replay_impulses
 from .articulated import Articulated
-from .contacts import Contacts
+from .contacts import PRESSES, Contacts
 from .events import BoxCCDWarning, CCDEvent, CCDStats, ClientDisconnectedError
 from .layout import ANGULAR_VELOCITY
 from .state import FrameState
 from .sweep import jump_sweep, sweep
-from .world import STATIC, World, pose_matrix, warn_once
+from .world import STATIC, World, warn_once
 
 __all__ = ["BoxCCD", "BoxCCDWarning", "ClientDisconnectedError", "CCDEvent", "CCDStats"]
 
@@ -82,15 +83,18 @@ class BoxCCD:
         but at an overlap of 2e-7 m it may see one corner of a leading
         edge or face and not the others. Default 1e-5.
     depth_tolerance : float
-        A pair that meets inside a step and ends it overlapping by less than this (m),
-        on the side it came from, is left to pybullet's next step; deeper, the world is
-        taken back to the contact. At least 0. Default 1e-3.
+        A pair of free or kinematic bodies that meets inside a step and ends it
+        overlapping by less than this (m), on the side it came from, or one already
+        touching that ends less than this deeper, is left to pybullet's next step;
+        deeper, the world is taken back to the contact (link pairs: only where they go
+        wrong). At least 0. Default 1e-3.
     self_collision_bodies : iterable of int
         Bodies whose links collide with each other.
     max_partial_steps : int
         Partial steps a step may take (each one from a contact on to the step's end).
         When they are used up, the bodies of each remaining contact go back to it on
-        their own and keep their velocities (pybullet resolves it at the next step).
+        their own, with the velocities they had there (pybullet resolves it at the
+        next step).
         At least 0. Default 8.
     tolerances : Tolerances
         Solver tolerances.
@@ -203,10 +207,12 @@ class BoxCCD:
         resolve wrongly; returns this step's contacts. Raises ``ClientDisconnectedError`` if
         the client was disconnected."""
         try:
-            return self._step_once()
+            events = self._step_once()
         except pybullet.error:
             self._check_connected()
             raise
+        self.world.journal.impulses.clear()  # pybullet cleared the user's forces
+        return events
 
     def _check_connected(self):
         if self.world.journal.closed or not raw.getConnectionInfo(self.cid)["isConnected"]:
@@ -222,18 +228,14 @@ class BoxCCD:
             # Nothing changed in the world since the last step: step, read the velocities
             # (the one read per body pybullet's API forces), and stop there if nothing is fast.
             self.stats.steps += 1
-            if not self._watched:  # no box that moves can meet another
-                raw.stepSimulation(physicsClientId=cid)
-                self._known = False
-                self.world.journal.impulses.clear()
-                return []
+            if not self._watched:
+                return self._pybullet_alone()
             st = self._state
             st.begin(self._known)
             raw.stepSimulation(physicsClientId=cid)
             self._known = True
             fast = st.sweeper.fast(self._dt, st.moving, st.twists()) if st.moving else None
             if fast is None and (not self._chains.watched or self._chains.idle(self._dt, st)):
-                self.world.journal.impulses.clear()
                 return []
             events = self._step(self._dt, 0.0, self._dt, stepped=True, fast=fast)
         else:
@@ -243,7 +245,6 @@ class BoxCCD:
         # substeps too); one with substeps or a kinematic velocity otherwise takes the full path.
         self._quiet = not self._state.with_velocity and (self._substeps == 1 or not self._watched)
         self._epoch = last_serial()
-        self.world.journal.impulses.clear()  # pybullet cleared them
         return events
 
     def _full_step(self):
@@ -252,10 +253,8 @@ class BoxCCD:
         dt, n = self._dt, self._substeps
         if n == 1:
             return self._step(dt, 0.0, dt)
-        if not self._watched and not self._state.with_velocity:  # nothing to sweep: pybullet's own substeps
-            raw.stepSimulation(physicsClientId=self.cid)
-            self._known, self._moves_seen = False, self.world.journal.last_move
-            return []
+        if not self._watched and not self._state.with_velocity:
+            return self._pybullet_alone()
         events = []
         with self._substepping(dt, n):
             for k in range(n):
@@ -263,6 +262,12 @@ class BoxCCD:
                     replay_impulses(self.cid, self.world.journal.impulses)
                 events += self._step(dt / n, k * dt / n, dt)
         return events
+
+    def _pybullet_alone(self):
+        """A step of pybullet alone (its own substeps too): no box that moves can meet another."""
+        raw.stepSimulation(physicsClientId=self.cid)
+        self._known, self._moves_seen = False, self.world.journal.last_move
+        return []
 
     @contextmanager
     def _substepping(self, dt, n):
@@ -288,6 +293,7 @@ class BoxCCD:
                 if not stepped:
                     self._state.begin(self._known)
                     raw.stepSimulation(physicsClientId=self.cid)
+                    self._state.read_velocities()
                     if k:
                         piece = self._within_clamp(piece, h)
                 t_sim = time.perf_counter()
@@ -341,9 +347,9 @@ class BoxCCD:
         """After a partial step of ``piece`` seconds: if the impact at its start spun a body of
         the contact past Bullet's turn clamp in it, the world goes back to the partial step's
         start (every body where its path has it then, with the velocities it started with)
-        and takes a partial step short enough for that spin, once. Returns its length."""
+        and takes a partial step short enough for that spin, once (its velocities read).
+        Returns its length."""
         st = self._state
-        st.read_velocities()
         spin = self._spin()
         if spin * piece <= _CLAMP * (1.0 + 1e-9) or st.twist0 is None:
             return piece
@@ -355,11 +361,13 @@ class BoxCCD:
         st.begin(True)
         raw.stepSimulation(physicsClientId=self.cid)
         st.fresh = set()  # the poses read or placed before this step are not its end
+        st.read_velocities()
         self.stats.partial_steps += 1
         return piece
 
     def _sweep(self, h, t0, user_moved, back, stepped=False, fast=None):
-        """Sweep the (partial) step of h seconds just taken and resolve its contacts: with
+        """Sweep the (partial) step of h seconds just taken (the moving frames' velocities
+        read) and resolve its contacts: with
         ``back``, the world goes back to the earliest contact pybullet would resolve
         wrongly (returns (events, its time)); without, each such contact's bodies go back
         on their own (returns (events, 1))."""
@@ -367,8 +375,6 @@ class BoxCCD:
         if not len(t.half):
             return [], 1.0
         st = self._state
-        if not stepped:
-            st.read_velocities()
         self._chains.read(h, st, self._known)
         self._known = True
         st.end_kinematic(h)
@@ -384,7 +390,7 @@ class BoxCCD:
             # that needs the world back; the world then goes back to the earlier of the two.
             # A link pair still pressing in after the world went back to it twice in this step
             # is one pybullet's solver does not hold: its body stops there on its own.
-            again = [x for x in found if x[1] is not None and x[3] and self._presses.get((x[6], x[7]), 0) >= 2]
+            again = [x for x in found if x[1] is not None and x[3] and self._presses.get((x[6], x[7]), 0) >= PRESSES]
             if again:
                 self._chains.stop_each(again, st, h, self.stats)
                 found = [x for x in found if not any(x is y for y in again)]
@@ -464,8 +470,7 @@ class BoxCCD:
         """``p.setCollisionFilterPair`` (which BoxCCD also sees when called directly)."""
         body_a, link_a = _body_link(self.cid, body_a, link_a)
         body_b, link_b = _body_link(self.cid, body_b, link_b)
-        import pybullet  # the wrapped function, so that the journal records it
-
+        # pybullet's (wrapped) function, not raw's, so that the journal records the rule
         pybullet.setCollisionFilterPair(body_a, body_b, link_a, link_b, int(_flag("enable", enable)),
                                         physicsClientId=self.cid)
 

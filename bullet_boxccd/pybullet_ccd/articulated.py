@@ -12,10 +12,13 @@ missed nor reported late), against every box near their swept bounds.
 
 A pair that pybullet would resolve wrongly from where the step left it (the link
 went through, or ended deeper than half the pair's reach along the contact normal)
-stops the whole body at the first time the pair overlaps by ``penetration`` on the
-exact path: base pose and every joint position at that time, with the velocities it
-had (``resetJointStateMultiDof`` takes both; motor targets and constraints are left
-as the user set them). A body that meets several others stops at the earliest.
+takes the world back to the first time the pair overlaps by ``penetration`` on the
+exact path (``contacts`` orders it with the free bodies' contacts): every body there,
+an articulated one by its base pose and every joint position at that time, with its
+velocities in proportion between those before and after the step
+(``resetJointStateMultiDof`` takes both; motor targets and constraints are left as the
+user set them). With no partial step left, each such body stops on its own at its
+earliest such contact.
 
 Self-collision: a body's links are paired when pybullet collides them, that is when
 the body was loaded with URDF_USE_SELF_COLLISION (or named in
@@ -70,7 +73,6 @@ class _Body:
     box_reach: np.ndarray = None
     base_idle: tuple = None  # (radius, reach): the base's farthest box point, its boxes' smallest sweep reach
     link_idle: tuple = None  # ([link], [radius], [reach]): the same for each link with boxes
-    alone: bool = False  # no box of it can meet another tracked box (none in other bodies, no self pairs)
     fast: bool = False  # whether a fast box of it was judged against a partner in the last step
 
 
@@ -114,9 +116,9 @@ class Articulated:
                            for j, s in zip(rec.moving_joints, spherical)]
             rec.qdot_spans = [(int(ch.qdot_index[j]), int(ch.qdot_index[j]) + (3 if s else 1))
                               for j, s in zip(rec.moving_joints, spherical)]
-            others = len(tables.half) > len(rec.boxes)
-            rec.alone = not others and not (rec.ancestors is not None and len(rec.boxes) > 1)
-        self.watched = [rec for rec in self.bodies.values() if not rec.alone]  # the bodies that can meet a box
+        # The bodies a box of which can meet another tracked box: one on another body, or its own (self-collision).
+        self.watched = [rec for rec in self.bodies.values()
+                        if len(tables.half) > len(rec.boxes) or (rec.ancestors is not None and len(rec.boxes) > 1)]
         self.frames = {f for rec in self.bodies.values() for f in rec.frames}
         self.boxes = np.array(sorted(i for rec in self.bodies.values() for _, i in rec.boxes), dtype=np.int64)
 

@@ -53,7 +53,7 @@ __all__ = ["Contacts", "place", "bounce"]
 
 _MOVING, _STOPPED, _CARRIED = 0, 1, 2
 # Times in a step the world goes back to a pair that was touching and pressed in anyway.
-_PRESSES = 2
+PRESSES = 2
 _IDENTITY = np.eye(4).reshape(-1)
 
 
@@ -360,7 +360,7 @@ class Contacts:
         elif paths.stoppable(fa) or paths.stoppable(fb) or (back and (push_a or push_b)):
             # A pair still pressing in after the world went back to it twice in this step is
             # one pybullet's solver does not hold: going back again would only repeat that.
-            again = initial and self._presses.get((int(fa), int(fb)), 0) >= _PRESSES
+            again = initial and self._presses.get((int(fa), int(fb)), 0) >= PRESSES
             action = "back" if back and not again else "stop"
         else:
             return info

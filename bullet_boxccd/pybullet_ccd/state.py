@@ -80,7 +80,7 @@ class FrameState:
         self.sweeper.put_twists(self.moving, self.twists())
 
     def read_twists(self, frames):
-        """Read the velocities of ``frames`` now (the user set them)."""
+        """Read the velocities of ``frames`` now."""
         if frames:
             self.sweeper.put_twists(frames, [self._twist[f]() for f in frames])
 
@@ -115,7 +115,7 @@ class FrameState:
         if not frames:
             return
         self.read_poses(frames)
-        self.sweeper.put_twists(frames, [self._twist[f]() for f in frames])
+        self.read_twists(frames)
         starts = _core.frame_poses(self.rows, dt, np.array(frames, dtype=np.int64), np.zeros(len(frames)))
         for f, p1 in zip(frames, starts):
             e0 = self.pose0[f]

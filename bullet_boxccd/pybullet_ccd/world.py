@@ -36,14 +36,14 @@ from functools import cached_property
 import numpy as np
 import pybullet
 
-from ..motion import pose_matrix, quat_to_matrix
+from ..motion import pose_matrix
 from . import mjcf
 from ._hooks import journal, new_serial, raw
 from .events import BoxCCDWarning
 from .filters import Filters, default_group_mask
 from .shapes import SPHERE, Shadow, multibody_boxes, probe_boxes
 
-__all__ = ["STATIC", "FREE", "LINK", "World", "Tables", "pose_matrix"]
+__all__ = ["STATIC", "FREE", "LINK", "World", "Tables"]
 
 STATIC, FREE, LINK = 0, 1, 2
 _GEOMETRY = {pybullet.GEOM_SPHERE: "sphere", pybullet.GEOM_CAPSULE: "capsule", pybullet.GEOM_CYLINDER: "cylinder",
@@ -270,9 +270,7 @@ class World:
         if self._probe_shape < 0:
             self._probe_shape = raw.createCollisionShape(pybullet.GEOM_SPHERE, radius=1e-3, physicsClientId=self.cid)
         pos, q = raw.getBasePositionAndOrientation(b, physicsClientId=self.cid)
-        X_WC = np.eye(4)
-        X_WC[:3, :3], X_WC[:3, 3] = quat_to_matrix(q), pos
-        boxes, why = probe_boxes(self.cid, b, link, X_WC, self._probe_shape)
+        boxes, why = probe_boxes(self.cid, b, link, pose_matrix(pos, q), self._probe_shape)
         if why == SPHERE:
             rec.left.append((link, "sphere"))
             return [], None

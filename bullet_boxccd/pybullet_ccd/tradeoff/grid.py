@@ -37,18 +37,16 @@ from ...validate.report import Report
 from ...validate.runner import progress, run_jobs
 from ...validate.tables import markdown
 
-__all__ = ["DEFAULT", "configs", "task", "sweep", "aggregate", "write_outputs", "summary_text"]
+__all__ = ["configs", "task", "sweep", "aggregate", "write_outputs", "summary_text"]
 
 MARGIN = 0.001  # pybullet's collision margin for boxes
 BAND = (-1e-5 - 1e-6, MARGIN + 1e-6)  # where a first touch (penetration 1e-5 m) should put the pair
 REF_FIT = 1e-4  # fit_tolerance of the reference run (contact times are compared with it)
-DEFAULT = dict(sweep_threshold=0.25, fit_tolerance=0.05, penetration=1e-5, depth_tolerance=1e-3,
-               max_partial_steps=8)
 WORLD = {"ccd": "multibody", "ref": "multibody", "plain": "multibody", "maximal": "maximal", "native": "native"}
 
 
 def configs(quick):
-    """(name, kind, BoxCCD kwargs or substep count), one knob at a time around the default."""
+    """(name, kind, BoxCCD kwargs or substep count), one knob at a time around BoxCCD's defaults."""
     out = [("BoxCCD default", "ccd", {})]
     for s in ((0.05, 1.0, 4.0, 8.0) if quick else (0.05, 0.5, 1.0, 2.0, 4.0, 8.0)):
         out.append((f"sweep_threshold={s:g}", "ccd", dict(sweep_threshold=s)))
@@ -77,7 +75,7 @@ def task(cfg, boxes, seed, window):
 
     world = S.build(boxes, WORLD[cfg[1]] != "multibody")
     try:
-        ccd = BoxCCD(world[0], **{**DEFAULT, **cfg[2]}) if cfg[1] in ("ccd", "ref") else None
+        ccd = BoxCCD(world[0], **cfg[2]) if cfg[1] in ("ccd", "ref") else None
         r = S.run_trial(world, cfg, seed, window, ccd)
         if ccd is not None:
             st = ccd.stats
