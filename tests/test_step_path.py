@@ -121,6 +121,22 @@ def test_first_touch_is_never_late_and_never_missed(seed):
     assert hits >= 10 and misses >= 3
 
 
+def _pairs_brute_force(bounds, n_fast, frame, frame_body, self_collides, group, mask, mode):
+    """The candidate pairs by testing every pair, in the order (i, j)."""
+    want = []
+    for i in range(n_fast):
+        for j in range(len(bounds)):
+            fi, fj = frame[i], frame[j]
+            meet = np.all(bounds[i, :3] <= bounds[j, 3:]) and np.all(bounds[j, :3] <= bounds[i, 3:])
+            ab, ba = (group[fi] & mask[fj]) != 0, (group[fj] & mask[fi]) != 0
+            allowed = (ab or ba) if mode == 1 else (ab and ba)
+            if (j == i or (j < n_fast and j < i) or not meet or fi == fj or not allowed
+                    or (frame_body[fi] == frame_body[fj] and not self_collides[fi])):
+                continue
+            want.append((i, j))
+    return want
+
+
 def test_candidate_pairs_match_brute_force():
     """Pairs whose swept bounds meet, at least one fast, each once, with the frame,
     body, self-collision and collision-filter rules (groups and masks in both of
@@ -140,20 +156,34 @@ def test_candidate_pairs_match_brute_force():
         n_fast = int(rng.integers(0, 6))
         frame = np.array([f for f, _, _ in boxes], dtype=np.int64)
         bounds = _core.swept_bounds(rows)
-        got = {tuple(x) for x in _core.candidate_pairs(bounds, n_fast, frame, frame_body, self_collides, group, mask,
-                                                       mode).tolist()}
-        want = set()
-        for i in range(n_fast):
-            for j in range(len(boxes)):
-                fi, fj = frame[i], frame[j]
-                meet = np.all(bounds[i, :3] <= bounds[j, 3:]) and np.all(bounds[j, :3] <= bounds[i, 3:])
-                ab, ba = (group[fi] & mask[fj]) != 0, (group[fj] & mask[fi]) != 0
-                allowed = (ab or ba) if mode == 1 else (ab and ba)
-                if (j == i or (j < n_fast and j < i) or not meet or fi == fj or not allowed
-                        or (frame_body[fi] == frame_body[fj] and not self_collides[fi])):
-                    continue
-                want.add((i, j))
-        assert got == want
+        got = [tuple(x) for x in _core.candidate_pairs(bounds, n_fast, frame, frame_body, self_collides, group, mask,
+                                                       mode).tolist()]
+        assert got == _pairs_brute_force(bounds, n_fast, frame, frame_body, self_collides, group, mask, mode)
+
+
+def test_candidate_pairs_of_many_boxes_match_brute_force():
+    """Worlds large enough for the sorted sweep: the same pairs in the same order as
+    testing every pair, with bounds that share their ends, touch exactly, or hold a NaN."""
+    rng = np.random.default_rng(11)
+    for trial in range(30):
+        n = int(rng.integers(60, 300))
+        n_fast = int(rng.integers(20, n + 1))
+        n_frames = int(rng.integers(n // 2, n + 1))
+        centre, half = rng.uniform(0.0, 2.0, (n, 3)), rng.uniform(0.0, 0.2, (n, 3))
+        if trial % 2:  # on a grid: equal ends and exactly touching bounds
+            centre, half = np.round(centre, 1), np.full((n, 3), 0.05)
+        bounds = np.hstack([centre - half, centre + half])
+        bounds[rng.integers(0, n, 3), rng.integers(0, 6, 3)] = np.nan
+        frame = rng.integers(0, n_frames, n).astype(np.int64)
+        frame_body = rng.integers(0, 40, n_frames).astype(np.int64)
+        self_collides = (rng.random(n_frames) < 0.5).astype(np.uint8)
+        group = rng.choice([1, 2, 4, 0], n_frames).astype(np.int64)
+        mask = rng.choice([-1, -3, 1, 0, 6], n_frames).astype(np.int64)
+        mode = trial % 2
+        got = [tuple(x) for x in _core.candidate_pairs(bounds, n_fast, frame, frame_body, self_collides, group, mask,
+                                                       mode).tolist()]
+        want = _pairs_brute_force(bounds, n_fast, frame, frame_body, self_collides, group, mask, mode)
+        assert got == want and len(want) > 0
 
 
 def test_swept_bounds_contain_the_exact_path():

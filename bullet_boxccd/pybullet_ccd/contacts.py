@@ -49,7 +49,7 @@ from .layout import ANGULAR_VELOCITY, PATH_ROW, POSE, VELOCITY
 from .sweep import CREEP
 from .world import FREE
 
-__all__ = ["Contacts", "place", "bounce"]
+__all__ = ["Contacts", "place", "place_all", "bounce"]
 
 _MOVING, _STOPPED, _CARRIED = 0, 1, 2
 # Times in a step the world goes back to a pair that was touching and pressed in anyway.
@@ -250,8 +250,7 @@ class Contacts:
         frames = [frames[k] for k in keep]
         state.read_poses(state.stale(frames))
         poses = _core.frame_poses(state.rows, dt, np.array(frames, dtype=np.int64), np.full(len(frames), tau))
-        for f, pose, k in zip(frames, poses, keep):
-            place(self.cid, tables, state, f, pose, v[k], w[k])
+        place_all(self.cid, tables, state, frames, poses, v[keep], w[keep])
         for f in carried + stopped:
             vf, wf = paths.twist(f)
             place(self.cid, tables, state, f, pose7(paths.com(f, 1.0)), vf, wf)
@@ -287,7 +286,7 @@ class Contacts:
                     versions = (-1, -1)
             if versions != (ta.version, tb.version):
                 since = max(ta.since, tb.since)
-                touch = self._first_touch(paths, i, j, since)
+                touch = self._first_touches(paths, [(i, j)], since)[0]
                 if touch is not None:
                     self._queue(heap, paths, q, i, j, since, touch, back)
                 continue
@@ -307,26 +306,26 @@ class Contacts:
             changed = self._act(paths, i, j, tau_r, info, user_moved)
             self._report(paths, i, j, info, bool(changed), events)
             budget -= bool(changed)
-            for f in changed:
-                for q2 in pairs_of.get(f, ()):
-                    i2, j2 = sw.pairs[q2]
-                    if paths.status(paths.frame[i2]) == _STOPPED and paths.status(paths.frame[j2]) == _STOPPED:
-                        continue  # two bodies standing still: nothing more happens
-                    touch = self._first_touch(paths, i2, j2, tau_r)
-                    if touch is not None:
-                        self._queue(heap, paths, q2, i2, j2, tau_r, touch, back)
+            again = [(q2, *sw.pairs[q2].tolist()) for f in changed for q2 in pairs_of.get(f, ())]
+            again = [(q2, i2, j2) for q2, i2, j2 in again  # two bodies standing still: nothing more happens
+                     if paths.status(paths.frame[i2]) != _STOPPED or paths.status(paths.frame[j2]) != _STOPPED]
+            touches = self._first_touches(paths, [(i2, j2) for _, i2, j2 in again], tau_r)
+            for (q2, i2, j2), touch in zip(again, touches):
+                if touch is not None:
+                    self._queue(heap, paths, q2, i2, j2, tau_r, touch, back)
         return 1.0
 
-    def _first_touch(self, paths, i, j, lo):
-        """The first touch (a step fraction) of rows i and j over [lo, 1], or None."""
-        if lo >= 1.0:
-            return None
-        w = _core.window_rows(paths.rows[[i, j]], lo, 1.0)
-        tau, states, solves = _core.first_touches(w, np.array([[0, 1]], dtype=np.int64), self.fit_tolerance,
-                                                  self.tolerances._core, self.penetration, CREEP, states=True)
+    def _first_touches(self, paths, pairs, lo):
+        """The first touch (a step fraction) of each pair of rows over [lo, 1], or None."""
+        if lo >= 1.0 or not pairs:
+            return [None] * len(pairs)
+        w = _core.window_rows(paths.rows[np.ravel(pairs)], lo, 1.0)
+        tau, states, solves = _core.first_touches(w, np.arange(w.shape[0], dtype=np.int64).reshape(-1, 2),
+                                                  self.fit_tolerance, self.tolerances._core, self.penetration, CREEP,
+                                                  states=True)
         self.stats.solver_rows += solves
         self.stats.count(states)
-        return None if np.isnan(tau[0]) else lo + float(tau[0]) * (1.0 - lo)
+        return [None if math.isnan(t) else lo + t * (1.0 - lo) for t in tau.tolist()]
 
     def _queue(self, heap, paths, q, i, j, lo, touch, back):
         """Judge the pair's contact (first touch ``touch`` in the window [lo, 1]) and queue
@@ -338,24 +337,24 @@ class Contacts:
     def _judge(self, paths, i, j, lo, touch, back):
         """What the pair (rows i, j) needs: {"act_at": tau, "action": None | "back" | "stop"
         | "push", "initial", "window", "contact"}: "back" takes the world back to act_at,
-        "stop" the pair's free bodies, "push" carries a free body with the kinematic one."""
+        "stop" the pair's free bodies, "push" carries a free body with the kinematic one.
+
+        A pair touching as the window began (pybullet's solver saw it) is acted on only if
+        it ends deeper by more than depth_tolerance (the next corner of a turning box
+        striking, or a body driven through), from the time it presses in by more than a
+        creep (a box pivoting on a corner sinks that corner slowly); one met inside the
+        window, if pybullet would resolve it wrongly (``_core.judge_contact``), from the
+        time it overlaps by ``penetration``."""
         fa, fb = paths.frame[i], paths.frame[j]
-        w = _core.window_rows(paths.rows[[i, j]], lo, 1.0)
         s_touch = (touch - lo) / (1.0 - lo)
         initial = s_touch == 0.0
-        c = self._contact(w, s_touch, 1.0)
-        info = {"act_at": touch, "action": None, "initial": initial, "window": (lo, 1.0), "contact": c}
-        if c is None:  # the fit's allowance touched, the boxes did not: nothing happened
-            return info
         carried = paths.status(fa) == _CARRIED or paths.status(fb) == _CARRIED
         push_a = paths.pushes(fa) and paths.free(fb)
         push_b = paths.pushes(fb) and paths.free(fa)
-        if (push_a or push_b) and (carried or not back):
+        pushing = (push_a or push_b) and (carried or not back)
+        if pushing:
             # A body carried by a kinematic teleport, or no partial step left: the
             # kinematic body cannot be taken back, so the free one is pushed ahead of it.
-            normal = _normal_at_end(w, s_touch, c)
-            if not _overtaken(w if push_a else w[::-1], normal if push_a else -normal, self.penetration):
-                return info
             action = "push"
         elif paths.stoppable(fa) or paths.stoppable(fb) or (back and (push_a or push_b)):
             # A pair still pressing in after the world went back to it twice in this step is
@@ -363,28 +362,22 @@ class Contacts:
             again = initial and self._presses.get((int(fa), int(fb)), 0) >= PRESSES
             action = "back" if back and not again else "stop"
         else:
+            action = None
+        c, wrong, s_act = _core.judge_contact(paths.rows[i], paths.rows[j], lo, s_touch, action is not None, pushing,
+                                              self.penetration, self.depth_tolerance, CREEP, self.tolerances._core)
+        self.stats.outcomes[Outcome.SEPARATED if c is None else c.outcome] += 1
+        info = {"act_at": touch, "action": None, "initial": initial, "window": (lo, 1.0), "contact": c}
+        if c is None or action is None:  # c None: the fit's allowance touched, the boxes did not
             return info
-        pair = _core.RowBoxPath(w[0]), _core.RowBoxPath(w[1])
-        end_depth = _core.paths_depth(*pair, 1.0)
-        if initial:
-            # Touching as the window began: pybullet's solver saw it. Acted on only if it
-            # ends deeper by more than depth_tolerance (the next corner of a turning box
-            # striking, or a body driven through), from the time it presses in by more than
-            # a creep (a box pivoting on a corner sinks that corner slowly).
-            thin = min(w[0, PATH_ROW["half_extents"]].min(), w[1, PATH_ROW["half_extents"]].min())
-            d0 = _core.paths_depth(*pair, 0.0)
-            target = max(d0, 0.0) + max(self.penetration, min(CREEP * thin, self.depth_tolerance))
-        else:
-            target = self.penetration
-        deeper = end_depth - (max(d0, 0.0) if initial else 0.0)
-        wrong = deeper > self.depth_tolerance or _goes_wrong(w, pair, s_touch, c, target)
-        if action != "push" and not wrong:
-            return info
-        s_act = _core.paths_first_depth(*pair, s_touch, target)
-        if np.isnan(s_act):
-            if action != "push":  # never as deep as that: a graze
+        if pushing:
+            w = _core.window_rows(paths.rows[[i, j]], lo, 1.0)
+            normal = _normal_at_end(w, s_touch, c)
+            if not _overtaken(w if push_a else w[::-1], normal if push_a else -normal, self.penetration):
                 return info
-            s_act = s_touch
+            if math.isnan(s_act):
+                s_act = s_touch
+        elif not wrong or math.isnan(s_act):  # resolved by pybullet, or never that deep: a graze
+            return info
         info.update(action=action, act_at=lo + s_act * (1.0 - lo), pusher_first=push_a)
         return info
 
@@ -497,6 +490,15 @@ def place(cid, tables, state, f, pose, v, w):
     state.rows[f, POSE], state.rows[f, VELOCITY], state.rows[f, ANGULAR_VELOCITY] = pose, v, w
 
 
+def place_all(cid, tables, state, frames, poses, v, w):
+    """``place`` for each of ``frames``, with poses (n, 7) and velocities v, w (n, 3)."""
+    for f, pose, vf, wf in zip(frames, poses.tolist(), v.tolist(), w.tolist()):
+        b = tables.keys[f][0]
+        raw.resetBasePositionAndOrientation(b, pose[:3], pose[3:], physicsClientId=cid)
+        raw.resetBaseVelocity(b, vf, wf, physicsClientId=cid)
+    state.rows[frames, POSE], state.rows[frames, VELOCITY], state.rows[frames, ANGULAR_VELOCITY] = poses, v, w
+
+
 def bounce(cid, tables, d, k, v, v_k, normal):
     """Frame d's velocity (v before) after a collision along ``normal`` (from the pusher)
     with an immovable body moving at v_k there, frame k's: pybullet's combined
@@ -512,27 +514,6 @@ def bounce(cid, tables, d, k, v, v_k, normal):
 
 
 # ---------------------------------------------------------------- geometry
-def _goes_wrong(w, pair, s_touch, contact, target):
-    """Whether pybullet would resolve the pair (rows w over their window, first touch at
-    s_touch, ``contact`` with unit normal n from A towards B) wrongly from where it ends.
-
-    Overlapping: pybullet pushes B out along the least overlap, away from A's centre. That
-    is wrong if it points out of A's far side (against n, which turns with the body whose
-    face it is), and fragile once B has gone in past half the pair's depth along n (the
-    centres then near each other along n: the next overlap can flip it). Apart: wrong if
-    they overlapped by ``target`` or more on the way (a contact pybullet never saw: passed
-    through, or struck and left). ``pair``: the rows as RowBoxPaths."""
-    if not all(math.isfinite(x) for x in contact.normal.tolist()):
-        return True
-    depth, axis = _core.paths_separation(*pair, 1.0)
-    if depth <= 0.0:
-        return not np.isnan(_core.paths_first_depth(*pair, s_touch, target))
-    n = _normal_at_end(w, s_touch, contact)
-    (ca, Ra, ha), (cb, Rb, hb) = (_box_at_end(row) for row in w)
-    reach = np.abs(Ra.T @ n) @ ha + np.abs(Rb.T @ n) @ hb
-    return float(np.dot(axis, n)) < 0.0 or float(np.dot(cb - ca, n)) < 0.5 * reach
-
-
 def _normal_at_end(w, s, contact):
     """The contact normal at s, turned to the end of the window with the body whose face
     it is (for an edge-edge contact, the one that turns less)."""

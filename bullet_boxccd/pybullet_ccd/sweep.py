@@ -63,9 +63,8 @@ class Sweep:
 # A step's partners of the fast boxes come from pybullet's broad phase (one
 # getOverlappingObjects per fast box) unless reading every moving frame's pose costs
 # less: measured on pybullet 3.2.7, the query costs about as much as 4 pose reads; the
-# world's boxes then pass through the core's own broad phase, up to this many.
+# world's boxes then pass through the core's own broad phase (a sorted sweep).
 _READS_PER_QUERY = 4
-_OWN_BROAD_PHASE_BOXES = 64
 
 
 def sweep(cid, tables, state, dt, fit_tolerance, tolerances, penetration, stats, t0, fast=None, at_clamp=None):
@@ -89,8 +88,7 @@ def sweep(cid, tables, state, dt, fit_tolerance, tolerances, penetration, stats,
     t1 = time.perf_counter()
     stats.seconds["state"] += t1 - t0
     boxes, all_others = fast, False
-    if len(tables.half) <= _OWN_BROAD_PHASE_BOXES and \
-            len(state.moving) <= len(fast_frames) + _READS_PER_QUERY * len(fast):
+    if len(state.moving) <= len(fast_frames) + _READS_PER_QUERY * len(fast):
         # Every moving frame where the step left it, and the core's broad phase.
         state.read_poses(state.stale(state.moving))
         all_others = True

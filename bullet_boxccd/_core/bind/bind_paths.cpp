@@ -10,6 +10,7 @@
 
 #include "bind/common.hpp"
 #include "paths/box_path.hpp"
+#include "paths/contact_judge.hpp"
 #include "paths/step_path.hpp"
 
 namespace boxccd::bind {
@@ -168,6 +169,20 @@ nb::object paths_window_contact(const BoxPath &a, const BoxPath &b, double lo, d
     return hit_result(window_contact(a, b, lo, hi, tol));
 }
 
+// (contact or None, wrong, depth time): judge_contact of rows a, b over the window [lo, 1].
+nb::tuple py_judge_contact(const In<kPathBoxSize> &row_a, const In<kPathBoxSize> &row_b, double lo, double s_touch,
+                           bool judge, bool with_time, double penetration, double depth_tolerance, double creep,
+                           const Tolerances &tol) {
+    if (!(0.0 <= lo && lo < 1.0 && 0.0 <= s_touch && s_touch <= 1.0))
+        throw nb::value_error(("expected 0 <= lo < 1 and 0 <= s_touch <= 1, got lo = " + std::to_string(lo) +
+                               ", s_touch = " + std::to_string(s_touch))
+                                  .c_str());
+    validate(tol);
+    const Judgement j = judge_contact(row_a.data(), row_b.data(), lo, s_touch, judge, with_time, penetration,
+                                      depth_tolerance, creep, tol);
+    return nb::make_tuple(hit_result(j.contact), j.wrong, j.depth_time);
+}
+
 double paths_depth(const BoxPath &a, const BoxPath &b, double tau) {
     check_tau(tau);
     return path_depth(a, b, tau);
@@ -213,6 +228,9 @@ void bind_paths(nb::module_ &m) {
     m.def("paths_contact", &py_paths_contact, nb::arg("a"), nb::arg("b"), nb::arg("fit_tolerance"),
           nb::arg("tolerances"));
     m.def("paths_window_contact", &paths_window_contact, nb::arg("a"), nb::arg("b"), nb::arg("lo"), nb::arg("hi"),
+          nb::arg("tolerances"));
+    m.def("judge_contact", &py_judge_contact, nb::arg("row_a"), nb::arg("row_b"), nb::arg("lo"), nb::arg("s_touch"),
+          nb::arg("judge"), nb::arg("with_time"), nb::arg("penetration"), nb::arg("depth_tolerance"), nb::arg("creep"),
           nb::arg("tolerances"));
     m.def("paths_depth", &paths_depth, nb::arg("a"), nb::arg("b"), nb::arg("tau"));
     m.def("paths_relative_move", &relative_move, nb::arg("a"), nb::arg("b"),

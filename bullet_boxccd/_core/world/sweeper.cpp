@@ -14,23 +14,70 @@ void check_index(int64_t i, size_t n, const char *what) {
     if (i < 0 || size_t(i) >= n) throw std::out_of_range(std::string(what) + " index " + std::to_string(i) + " out of range");
 }
 
+// Up to this many bound tests (fast boxes times boxes), testing every pair costs less than
+// sorting the boxes.
+static constexpr int64_t kBruteForcePairs = 4096;
+
+static bool bounds_meet(const double *a, const double *b) {
+    return a[0] <= b[3] && b[0] <= a[3] && a[1] <= b[4] && b[1] <= a[4] && a[2] <= b[5] && b[2] <= a[5];
+}
+
 std::vector<std::pair<int64_t, int64_t>> candidate_pairs(const double *bounds, int64_t n, int64_t n_fast,
                                                          const int64_t *frame, const int64_t *frame_body,
                                                          const uint8_t *self_collides, const FrameFilter &filter) {
     std::vector<std::pair<int64_t, int64_t>> out;
-    for (int64_t i = 0; i < n_fast; ++i)
-        for (int64_t j = 0; j < n; ++j) {
-            if (j == i || (j < n_fast && j < i)) continue;
-            const double *bi = bounds + 6 * i, *bj = bounds + 6 * j;
-            if (!(bi[0] <= bj[3] && bj[0] <= bi[3] && bi[1] <= bj[4] && bj[1] <= bi[4] && bi[2] <= bj[5] &&
-                  bj[2] <= bi[5]))
-                continue;
-            const int64_t fi = frame[i], fj = frame[j];
-            if (fi == fj) continue;  // boxes of one link never collide with each other
-            if (frame_body[fi] == frame_body[fj] && !self_collides[fi]) continue;
-            if (!filter.allowed(fi, fj)) continue;
-            out.emplace_back(i, j);
+    const auto consider = [&](int64_t i, int64_t j) {  // i fast; j any other box
+        if (!bounds_meet(bounds + 6 * i, bounds + 6 * j)) return;
+        const int64_t fi = frame[i], fj = frame[j];
+        if (fi == fj) return;  // boxes of one link never collide with each other
+        if (frame_body[fi] == frame_body[fj] && !self_collides[fi]) return;
+        if (!filter.allowed(fi, fj)) return;
+        out.emplace_back(i, j);
+    };
+    if (n_fast * n <= kBruteForcePairs) {
+        for (int64_t i = 0; i < n_fast; ++i)
+            for (int64_t j = 0; j < n; ++j)
+                if (j != i && (j >= n_fast || j > i)) consider(i, j);
+        return out;
+    }
+    // Sort and sweep along the axis the boxes spread most on; boxes with a NaN bound meet
+    // nothing (as in the comparisons above). The pairs come out in the order above.
+    std::vector<int64_t> order;
+    order.reserve(size_t(n));
+    double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+    for (int64_t i = 0; i < n; ++i) {
+        const double *b = bounds + 6 * i;
+        bool ordered = true;
+        for (int k = 0; k < 6; ++k) ordered = ordered && !std::isnan(b[k]);
+        if (!ordered) continue;
+        order.push_back(i);
+        for (int k = 0; k < 3; ++k) {
+            const double c = 0.5 * (b[k] + b[k + 3]);
+            lo[k] = std::min(lo[k], c);
+            hi[k] = std::max(hi[k], c);
         }
+    }
+    int axis = 0;
+    for (int k = 1; k < 3; ++k)
+        if (hi[k] - lo[k] > hi[axis] - lo[axis]) axis = k;
+    std::sort(order.begin(), order.end(), [&](int64_t a, int64_t b) {
+        const double la = bounds[6 * a + axis], lb = bounds[6 * b + axis];
+        return la < lb || (la == lb && a < b);
+    });
+    for (size_t s = 0; s < order.size(); ++s) {
+        const int64_t a = order[s];
+        const double reach = bounds[6 * a + axis + 3];
+        for (size_t t = s + 1; t < order.size() && bounds[6 * order[t] + axis] <= reach; ++t) {
+            const int64_t b = order[t];
+            if (a < n_fast && b < n_fast)
+                consider(std::min(a, b), std::max(a, b));
+            else if (a < n_fast)
+                consider(a, b);
+            else if (b < n_fast)
+                consider(b, a);
+        }
+    }
+    std::sort(out.begin(), out.end());
     return out;
 }
 

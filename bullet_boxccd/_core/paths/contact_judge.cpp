@@ -1,0 +1,86 @@
+#include "paths/contact_judge.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+#include "solver/bms.hpp"
+#include "solver/vec.hpp"
+
+namespace boxccd {
+
+namespace {
+
+using pr = PathRow;
+
+// v turned with a row's frame from s to the end of its path: by (1 - s) times its angle
+// about its axis (Rodrigues).
+Vec3 turned_to_end(const double *row, double s, const Vec3 &v) {
+    const Vec3 k{row[pr::kAxis], row[pr::kAxis + 1], row[pr::kAxis + 2]};
+    const double th = (1.0 - s) * row[pr::kAngle];
+    const Vec3 kv = cross3(k, v);
+    return v + std::sin(th) * kv + (1.0 - std::cos(th)) * cross3(k, kv);
+}
+
+// The contact normal at s turned to the end of the window with the body whose face it
+// is (for an edge-edge contact, the one that turns less).
+Vec3 normal_at_end(const double *row_a, const double *row_b, double s, const Hit &hit) {
+    const Kind kind = facet_kind(hit.facet);
+    const bool first = kind == Kind::OV || (kind == Kind::EE && row_a[pr::kAngle] <= row_b[pr::kAngle]);
+    return turned_to_end(first ? row_a : row_b, s, hit.normal);
+}
+
+// Half the extent of a box (pose X, row-major 4x4; half extents h) along unit n.
+double half_width(const double *X, const double *h, const Vec3 &n) {
+    double r = 0.0;
+    for (int k = 0; k < 3; ++k) r += std::fabs(X[k] * n[0] + X[4 + k] * n[1] + X[8 + k] * n[2]) * h[k];
+    return r;
+}
+
+}  // namespace
+
+Judgement judge_contact(const double *row_a, const double *row_b, double lo, double s_touch, bool judge,
+                        bool with_time, double penetration, double depth_tolerance, double creep,
+                        const Tolerances &tol) {
+    double wa[pr::kSize], wb[pr::kSize];
+    window_row(row_a, lo, 1.0, wa);
+    window_row(row_b, lo, 1.0, wb);
+    const RowBoxPath a(wa), b(wb);
+    Judgement out;
+    out.contact = window_contact(a, b, s_touch, 1.0, tol);
+    if (out.contact.outcome == Outcome::Separated || !judge) return out;
+    const double *ha = a.half_extents(), *hb = b.half_extents();
+    const bool initial = s_touch == 0.0;
+    double target = penetration, start = 0.0;
+    if (initial) {
+        const double thin = std::min(*std::min_element(ha, ha + 3), *std::min_element(hb, hb + 3));
+        start = std::max(path_depth(a, b, 0.0), 0.0);
+        target = start + std::max(penetration, std::min(creep * thin, depth_tolerance));
+    }
+    bool timed = false;
+    const auto depth_time = [&] {
+        if (!timed) out.depth_time = first_depth(a, b, s_touch, target);
+        timed = true;
+        return out.depth_time;
+    };
+    const Hit &c = out.contact;
+    if (path_depth(a, b, 1.0) - start > depth_tolerance || c.facet < 0 ||
+        !(std::isfinite(c.normal[0]) && std::isfinite(c.normal[1]) && std::isfinite(c.normal[2]))) {
+        out.wrong = true;
+    } else {
+        Vec3 axis;
+        if (path_separation(a, b, 1.0, axis.data()) <= 0.0) {
+            out.wrong = !std::isnan(depth_time());  // apart: overlapped that deep on the way
+        } else {
+            const Vec3 n = normal_at_end(wa, wb, s_touch, c);
+            double Xa[16], Xb[16];
+            row_pose(wa, 1.0, Xa);
+            row_pose(wb, 1.0, Xb);
+            const Vec3 ab{Xb[3] - Xa[3], Xb[7] - Xa[7], Xb[11] - Xa[11]};
+            out.wrong = dot3(axis, n) < 0.0 || dot3(ab, n) < 0.5 * (half_width(Xa, ha, n) + half_width(Xb, hb, n));
+        }
+    }
+    if (out.wrong || with_time) depth_time();
+    return out;
+}
+
+}  // namespace boxccd

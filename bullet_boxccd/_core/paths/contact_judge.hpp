@@ -1,0 +1,36 @@
+// How pybullet resolves a contact from where its step leaves it: the geometry of the
+// plugin's judgement of one contact (pybullet_ccd/contacts.py says what is done with it).
+//
+// pybullet pushes an overlap out along its least axis, away from the first box's centre.
+// From a pair's state at the end of a window of the step, that goes wrong when the boxes
+// end deeper than a tolerance, when the least axis points out of the far side of the box
+// whose face was struck, when the second box has gone in past half the pair's depth along
+// the contact normal, or when the boxes end apart but overlapped deeply on the way (a
+// contact pybullet never saw).
+#pragma once
+
+#include <limits>
+
+#include "paths/box_path.hpp"
+
+namespace boxccd {
+
+struct Judgement {
+    Hit contact;  // the first touch over [s_touch, 1] of the window; Separated: the boxes stayed apart
+    bool wrong = false;  // pybullet would resolve the pair wrongly from the window's end
+    // The first s in (s_touch, 1] at which the pair's depth reaches the target: the
+    // penetration for a pair met inside the window; for one touching as it began, its
+    // depth then plus the larger of the penetration and its creep (creep times the
+    // thinner box's smallest half extent, at most depth_tolerance). NaN if never.
+    double depth_time = std::numeric_limits<double>::quiet_NaN();
+};
+
+// The judgement of the pair of path rows a, b (PathRow) over the window [lo, 1] of the
+// step, first touching at s_touch (a fraction of the window; 0: touching as it began).
+// Without `judge`, only the contact. depth_time is found where the pair goes wrong, or
+// always with `with_time`.
+Judgement judge_contact(const double *row_a, const double *row_b, double lo, double s_touch, bool judge,
+                        bool with_time, double penetration, double depth_tolerance, double creep,
+                        const Tolerances &tol);
+
+}  // namespace boxccd

@@ -1,0 +1,95 @@
+"""The core's judgement of one contact (``_core.judge_contact``: whether pybullet would
+resolve a pair wrongly from where a window of the step leaves it, and when the pair's
+depth reaches the depth acted at) on straight translations, whose touch and depths are
+known in closed form."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from bullet_boxccd import _core
+
+PENETRATION, DEPTH_TOLERANCE, CREEP = 1e-5, 1e-3, 0.02
+TOL = _core.Tolerances()
+WALL = (0.01, 1.0, 1.0)  # half extents of a wall across x = 0
+CUBE = (0.1, 0.1, 0.1)
+
+
+def rows(half_a, x_a, half_b, x_b, y_b=0.0):
+    """Path rows of box A going from x_a[0] to x_a[1] and box B from x_b[0] to x_b[1]
+    along x over the step (B at y_b), unturned."""
+    poses = np.zeros((2, 2, 7))
+    poses[..., 6] = 1.0
+    poses[:, 1, 1] = y_b
+    poses[0, :, 0], poses[1, :, 0] = (x_a[0], x_b[0]), (x_a[1], x_b[1])
+    return _core.path_rows_between(poses[0], poses[1], np.arange(2, dtype=np.int64), np.arange(2, dtype=np.int64),
+                                   np.stack([np.eye(4)] * 2), np.array([half_a, half_b], dtype=float))
+
+
+def judge(r, s_touch=None, lo=0.0, with_time=False, swap=False):
+    a, b = (r[1], r[0]) if swap else (r[0], r[1])
+    if s_touch is None:
+        tau = _core.first_touches(_core.window_rows(np.stack([a, b]), lo, 1.0), np.array([[0, 1]], dtype=np.int64),
+                                  0.05, TOL, PENETRATION, CREEP)[0][0]
+        s_touch = float(tau)
+    return _core.judge_contact(a, b, lo, s_touch, True, with_time, PENETRATION, DEPTH_TOLERANCE, CREEP, TOL)
+
+
+@pytest.mark.parametrize("swap", [False, True])
+def test_a_pass_through_goes_wrong_from_its_first_depth(swap):
+    """A cube crossing a 2 cm wall in the step ends apart on the far side: wrong, acted on
+    from the time it is ``penetration`` deep, x = -0.11 + penetration."""
+    c, wrong, s = judge(rows(WALL, (0, 0), CUBE, (-0.5, 0.5)), swap=swap)
+    assert c is not None and wrong
+    assert s == pytest.approx(0.39 + PENETRATION, abs=1e-9)
+    assert c.t == pytest.approx(0.39, abs=1e-6)
+
+
+@pytest.mark.parametrize("end, wrong", [(-0.1095, False), (-0.1085, True), (-0.105, True)])
+@pytest.mark.parametrize("swap", [False, True])
+def test_an_overlap_at_the_end_is_wrong_past_the_depth_tolerance(end, wrong, swap):
+    """Met inside the step and ending 0.5, 1.5 or 5 mm into the wall: pybullet's own below
+    ``depth_tolerance`` (1 mm); wrong beyond it, from x = -0.11 + penetration."""
+    c, got, s = judge(rows(WALL, (0, 0), CUBE, (-0.5, end)), swap=swap)
+    assert c is not None and got == wrong
+    if wrong:
+        assert s == pytest.approx((0.39 + PENETRATION) / (end + 0.5), abs=1e-9)
+    else:
+        assert np.isnan(s)
+        _, _, s = judge(rows(WALL, (0, 0), CUBE, (-0.5, end)), with_time=True, swap=swap)
+        assert s == pytest.approx((0.39 + PENETRATION) / (end + 0.5), abs=1e-9)
+
+
+def test_a_pair_that_stays_apart_has_no_contact():
+    c, wrong, s = _core.judge_contact(*rows(WALL, (0, 0), CUBE, (-0.5, -0.2)), 0.0, 0.0, True, True, PENETRATION,
+                                      DEPTH_TOLERANCE, CREEP, TOL)
+    assert c is None and not wrong and np.isnan(s)
+
+
+@pytest.mark.parametrize("end, wrong", [(-0.1097, False), (-0.105, True)])
+def test_a_pair_touching_as_the_window_begins_is_judged_on_how_much_deeper_it_ends(end, wrong):
+    """0.1 mm in at the start: pybullet's solver saw it. Wrong if it ends more than
+    ``depth_tolerance`` deeper; acted on from the depth at the start plus the creep (2% of
+    the wall's 1 cm half thickness, 0.2 mm): x = -0.11 + 0.3 mm."""
+    c, got, s = judge(rows(WALL, (0, 0), CUBE, (-0.1099, end)), s_touch=0.0)
+    assert c is not None and c.initial and got == wrong
+    if wrong:
+        assert s == pytest.approx((-0.11 + 3e-4 + 0.1099) / (end + 0.1099), abs=1e-9)
+
+
+def test_a_window_later_in_the_step():
+    """The same pass through, judged over the window [0.25, 1] of the step: its fractions
+    are the window's."""
+    c, wrong, s = judge(rows(WALL, (0, 0), CUBE, (-0.5, 0.5)), lo=0.25)
+    assert c is not None and wrong
+    assert s == pytest.approx((0.39 + PENETRATION - 0.25) / 0.75, abs=1e-9)
+
+
+def test_a_box_ending_past_the_middle_of_a_thin_sheet_goes_wrong():
+    """A cube driven along x into the edge of a sheet 0.8 mm thick in y (their faces 0.3 mm
+    into each other in y all along) ends 1 cm from the sheet's centre along the contact
+    normal: its least overlap is the sheet's 0.3 mm in y, which pybullet would push it out
+    along, sideways. Shallow, yet wrong: past the middle."""
+    c, wrong, s = judge(rows((0.1, 4e-4, 0.1), (0, 0), CUBE, (-0.5, -0.01), y_b=0.1004 - 3e-4))
+    assert c is not None and wrong and s == pytest.approx((0.3 + PENETRATION) / 0.49, abs=1e-9)
