@@ -302,7 +302,8 @@ def rain_build(w, rng, variant):
     """``variant`` boxes (jenga pieces 15 x 5 x 3 cm and cube_small 5 cm, alternately) on a
     grid 17 cm apart (16 a layer, layers 0.4 m apart from 1 m up), turned at random, spin
     ~N(0, 10), thrown down at 20-60 m/s (+-2 m/s across) into tray/traybox.urdf, over a
-    static ground box (2 cm thick, top at z = -0.005, under the tray). Run 0.4 s."""
+    static ground box (2 cm thick, top at z = -0.005, under the tray). Run 0.4 s. Rise: a
+    box's fastest upward velocity over the run (its rebounds off the tray and the others)."""
     n = int(variant)
     tray = w.urdf("tray/traybox.urdf", (0, 0, 0))
     ground = w.box((20.0, 20.0, 0.01), (0, 0, -0.015))
@@ -320,13 +321,15 @@ def rain_build(w, rng, variant):
         w.set_vel(b, (rng.uniform(-2, 2), rng.uniform(-2, 2), -rng.uniform(20.0, 60.0)), rng.normal(0, 10, 3))
         boxes.append(b)
     steps = int(round(0.4 / w.dt)) if n <= 48 else 40
-    return SimpleNamespace(tray=tray, ground=ground, boxes=boxes, steps=steps, deepest=0.0, track=n <= 48)
+    return SimpleNamespace(tray=tray, ground=ground, boxes=boxes, steps=steps, deepest=0.0, track=n <= 48,
+                           rise=np.zeros(n))
 
 
 def rain_observe(w, s, k):
     if s.track:
-        for b in s.boxes:
+        for i, b in enumerate(s.boxes):
             s.deepest = max(s.deepest, w.depth(b, s.tray))
+            s.rise[i] = max(s.rise[i], w.vel(b)[0][2])
 
 
 def _under_tray(c):
@@ -335,7 +338,7 @@ def _under_tray(c):
 
 def rain_measure(w, s):
     cs = [w.pos(b) for b in s.boxes]
-    return dict(tunneled=int(sum(_under_tray(c) for c in cs)), deepest=s.deepest,
+    return dict(tunneled=int(sum(_under_tray(c) for c in cs)), deepest=s.deepest, rise=s.rise,
                 in_tray=int(sum(c[2] > TRAY_FLOOR[0] and abs(c[0]) < 0.3 and abs(c[1]) < 0.3 for c in cs)))
 
 
@@ -621,7 +624,9 @@ FAMILIES = {f.key: f for f in [
            rain_build, rain_observe, rain_measure,
            [Figure("tunneled", _count("tunneled"), 0.5),
             Figure("deepest pen. m (max)", lambda rs: float(np.max(all_of(rs, "deepest"))), 0.003),
-            Figure("in tray (median)", _pct("in_tray", med), 3.0)],
+            Figure("in tray (median)", _pct("in_tray", med), 3.0),
+            Figure("rise m/s (median)", _pct("rise", med), 0.5),
+            Figure("rise m/s q75", _pct("rise", q75), 1.0)],
            Figure("tunneled fraction - ref's",
                   lambda rs, refs: (_count("tunneled")(rs) - _count("tunneled")(refs)) / (48.0 * len(rs)), 0.01,
                   True), "tunneled fraction - ref's", cost_only=("100", "1000")),

@@ -131,8 +131,9 @@ class BoxCCD:
         self._known = False  # whether the frame-state rows hold the velocities the next step starts from
         self._partial = False  # whether the world is set for a partial step (its time step and contact ERP)
         # Frames of the contact the world was taken back to as the partial step began (acted),
-        # and those of them struck by an impact then (its impulse acts whole at that start).
-        self._acted, self._struck = set(), set()
+        # and those of them struck by an impact then (its impulse acts whole at that start);
+        # the frames a step stopped at an impact, struck as the next step begins.
+        self._acted, self._struck, self._struck_next = set(), set(), set()
         self._sync()
 
     # ------------------------------------------------------------ the world
@@ -224,6 +225,7 @@ class BoxCCD:
 
     def _step_once(self) -> list:
         cid = self.cid
+        struck, self._struck_next = self._struck_next, set()
         if self._quiet and last_serial() == self._epoch and raw.getNumBodies(physicsClientId=cid) == self.world.count:
             # Nothing changed in the world since the last step: step, read the velocities
             # (the one read per body pybullet's API forces), and stop there if nothing is fast.
@@ -237,9 +239,9 @@ class BoxCCD:
             fast = st.sweeper.fast(self._dt, st.moving, st.twists()) if st.moving else None
             if fast is None and (not self._chains.watched or self._chains.idle(self._dt, st)):
                 return []
-            events = self._step(self._dt, 0.0, self._dt, stepped=True, fast=fast)
+            events = self._step(self._dt, 0.0, self._dt, struck, stepped=True, fast=fast)
         else:
-            events = self._full_step()
+            events = self._full_step(struck)
             self.stats.steps += 1
         # A world where no moving box can meet another is stepped by pybullet alone (its own
         # substeps too); one with substeps or a kinematic velocity otherwise takes the full path.
@@ -247,12 +249,12 @@ class BoxCCD:
         self._epoch = last_serial()
         return events
 
-    def _full_step(self):
+    def _full_step(self, struck):
         self._check_connected()
         self._sync()
         dt, n = self._dt, self._substeps
         if n == 1:
-            return self._step(dt, 0.0, dt)
+            return self._step(dt, 0.0, dt, struck)
         if not self._watched and not self._state.with_velocity:
             return self._pybullet_alone()
         events = []
@@ -260,7 +262,9 @@ class BoxCCD:
             for k in range(n):
                 if k:  # pybullet cleared the user's forces after the last substep
                     replay_impulses(self.cid, self.world.journal.impulses)
-                events += self._step(dt / n, k * dt / n, dt)
+                events += self._step(dt / n, k * dt / n, dt, struck)
+                struck, self._struck_next = self._struck_next, set()
+        self._struck_next = struck
         return events
 
     def _pybullet_alone(self):
@@ -278,15 +282,17 @@ class BoxCCD:
         finally:
             raw.setPhysicsEngineParameter(fixedTimeStep=dt, numSubSteps=n, physicsClientId=self.cid)
 
-    def _step(self, h, offset, dt, stepped=False, fast=None):
+    def _step(self, h, offset, dt, struck, stepped=False, fast=None):
         """One stepSimulation of h seconds (``offset`` into the user's step of dt), swept,
         then the rest of it again from each contact the world is taken back to, until the
-        step is done. ``stepped``: pybullet took the step already, the velocities are
-        read, and ``fast`` are the fast boxes (``Sweeper.fast``; None: none)."""
+        step is done. ``struck``: frames the last step stopped at an impact (pybullet's
+        solver meets it as this step begins). ``stepped``: pybullet took the step already,
+        the velocities are read, and ``fast`` are the fast boxes (``Sweeper.fast``; None:
+        none)."""
         self._velocities_set()
         moved_static, with_velocity, user_moved = self._user_moves()
         t_start, elapsed, piece, events = time.perf_counter(), 0.0, h, []
-        self._acted, self._struck, self._presses = set(), set(), {}
+        self._acted, self._struck, self._presses = set(), struck, {}
         try:
             for k in range(1 + self.max_partial_steps):
                 self._state.begin_kinematic(moved_static, with_velocity)
@@ -416,7 +422,8 @@ class BoxCCD:
             events = self._chains.events(found)
             _, pushed = self._chains.stop_each(found, st, h, self.stats)
             more, tau = self.contacts.resolve(_without(sw, pushed, t), jw, t, st, h, user_moved, self._gravity,
-                                              False)
+                                              False, struck=self._struck)
+            self._struck_next = self.contacts.struck
             events += more
         self.stats.seconds["rewind"] += time.perf_counter() - t3
         self.stats.contacts += len(events)

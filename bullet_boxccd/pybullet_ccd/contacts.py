@@ -21,8 +21,9 @@ state at the end of the step decides:
   has it at that time, with the velocity it had there.
 * A pair still pressing in after the world went back to it twice in the step, and every
   such pair once the step's partial steps are used up (``max_partial_steps``), stops on
-  its own at that time instead, with its velocity there; pybullet resolves it at the
-  next step.
+  its own at that time instead, with its velocity there; pybullet resolves it as the
+  next step begins, where a pair stopped at an impact is struck (its impulse acts whole
+  then, as for the pair a partial step begins at).
 
 Kinematic bodies (a fixed base the user teleports) cannot be taken back: a free body a
 teleport swept into is carried with it from the touch and leaves with the velocity of
@@ -78,8 +79,9 @@ class _Paths:
     path rows, rewritten as paths change; all are over the whole step (tau in [0, 1]),
     valid from the frame's last change on."""
 
-    def __init__(self, sw, tables, state, dt, kinematic):
+    def __init__(self, sw, tables, state, dt, kinematic, struck, gravity):
         self.tables, self.state, self.dt = tables, state, dt
+        self.struck, self.gravity = struck, gravity
         self.rows = sw.rows.copy()
         self.box = sw.boxes
         self.frame = tables.box_frame[sw.boxes]
@@ -129,17 +131,16 @@ class _Paths:
         return pose_matrix(p[:3], p[3:])
 
     def stop(self, f, tau):
-        """Frame f stands still from tau on, with the velocity it had at tau: between its
-        velocities before and after the step, in proportion (after, if those before are not
-        known): kept from after the step, a stopped body would gain a step's gravity every
-        step it stands."""
+        """Frame f stands still from tau on, with the velocity it had at tau, as the world
+        going back there would give it (``Contacts._world_to``): kept from after the step, a
+        stopped body would gain a step's gravity every step it stands."""
         tr = self.track[f]
         tr.frozen = self.com(f, tau)
-        v, w = self.twist(f)
-        if self.state.twist0 is not None and tr.velocity is None:
-            v0, w0 = self.state.twist0[f, :3], self.state.twist0[f, 3:]
-            v, w = v0 + tau * (v - v0), w0 + tau * (w - w0)
-        tr.velocity = (v, w)
+        if tr.velocity is None:
+            st = self.state
+            mode = 2 if st.twist0 is None or f in self.struck else 1
+            v, w, _ = st.sweeper.velocities_at(self.dt, tau, [f], [mode], st.twist0, self.gravity)
+            tr.velocity = (v[0], w[0])
         for r in tr.rows:
             X = _core.row_poses(self.rows[[r]], np.array([tau]))[0]
             self.rows[r] = _still_row(X, self.rows[r])
@@ -188,12 +189,13 @@ class Contacts:
         contact the world was taken back to at the start of this (partial) step; ``presses``:
         {pair of frames: times the world went back to it pressing in this step}. The frames
         of the contact the world goes back to are left in ``self.acted`` (and in ``self.struck``
-        if it is an impact: met inside the step)."""
+        if it is an impact: met inside the step); without ``back``, the frames stopped at an
+        impact are left in ``self.struck``."""
         kinematic = set(state.kinematic)
         events, self.struck, self.acted = [], set(), set()
         self._presses = {} if presses is None else presses
         pushed = self._jumps(jw, tables, state, dt, kinematic, user_moved, events) if jw is not None else {}
-        paths = _Paths(sw, tables, state, dt, kinematic) if sw is not None and sw.hits else None
+        paths = _Paths(sw, tables, state, dt, kinematic, struck, gravity) if sw is not None and sw.hits else None
         for d, (k, start, v) in pushed.items():  # then it rides its kinematic body through the step
             row_k = self._frame_row(tables, state, dt, k)
             if paths is not None and d in paths.track:
@@ -402,6 +404,8 @@ class Contacts:
         changed = [f for f in (fa, fb) if paths.stoppable(f)]
         for f in changed:
             paths.stop(f, tau)
+        if not info["initial"]:  # an impact: pybullet's solver meets it as the next step begins
+            self.struck.update(changed)
         return changed
 
     @staticmethod
