@@ -303,7 +303,9 @@ def rain_build(w, rng, variant):
     grid 17 cm apart (16 a layer, layers 0.4 m apart from 1 m up), turned at random, spin
     ~N(0, 10), thrown down at 20-60 m/s (+-2 m/s across) into tray/traybox.urdf, over a
     static ground box (2 cm thick, top at z = -0.005, under the tray). Run 0.4 s. Rise: a
-    box's fastest upward velocity over the run (its rebounds off the tray and the others)."""
+    box's fastest upward velocity over the run (its rebounds off the tray and the others);
+    spun: boxes that turned faster than 2000 rad/s (pybullet's gyroscopic term at a coarse
+    step spins a fast-turning jenga piece up to its velocity clamp)."""
     n = int(variant)
     tray = w.urdf("tray/traybox.urdf", (0, 0, 0))
     ground = w.box((20.0, 20.0, 0.01), (0, 0, -0.015))
@@ -322,14 +324,16 @@ def rain_build(w, rng, variant):
         boxes.append(b)
     steps = int(round(0.4 / w.dt)) if n <= 48 else 40
     return SimpleNamespace(tray=tray, ground=ground, boxes=boxes, steps=steps, deepest=0.0, track=n <= 48,
-                           rise=np.zeros(n))
+                           rise=np.zeros(n), spin=np.zeros(n))
 
 
 def rain_observe(w, s, k):
     if s.track:
         for i, b in enumerate(s.boxes):
             s.deepest = max(s.deepest, w.depth(b, s.tray))
-            s.rise[i] = max(s.rise[i], w.vel(b)[0][2])
+            v, omega = w.vel(b)
+            s.rise[i] = max(s.rise[i], v[2])
+            s.spin[i] = max(s.spin[i], float(np.linalg.norm(omega)))
 
 
 def _under_tray(c):
@@ -339,6 +343,7 @@ def _under_tray(c):
 def rain_measure(w, s):
     cs = [w.pos(b) for b in s.boxes]
     return dict(tunneled=int(sum(_under_tray(c) for c in cs)), deepest=s.deepest, rise=s.rise,
+                spun=int(np.sum(s.spin > 2000.0)),
                 in_tray=int(sum(c[2] > TRAY_FLOOR[0] and abs(c[0]) < 0.3 and abs(c[1]) < 0.3 for c in cs)))
 
 
@@ -626,7 +631,8 @@ FAMILIES = {f.key: f for f in [
             Figure("deepest pen. m (max)", lambda rs: float(np.max(all_of(rs, "deepest"))), 0.003),
             Figure("in tray (median)", _pct("in_tray", med), 3.0),
             Figure("rise m/s (median)", _pct("rise", med), 0.5),
-            Figure("rise m/s q75", _pct("rise", q75), 1.0)],
+            Figure("rise m/s q75", _pct("rise", q75), 1.0),
+            Figure("spun past 2000 rad/s", _count("spun"), 0.5)],
            Figure("tunneled fraction - ref's",
                   lambda rs, refs: (_count("tunneled")(rs) - _count("tunneled")(refs)) / (48.0 * len(rs)), 0.01,
                   True), "tunneled fraction - ref's", cost_only=("100", "1000")),
