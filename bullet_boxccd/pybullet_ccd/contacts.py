@@ -50,7 +50,7 @@ from .layout import ANGULAR_VELOCITY, PATH_ROW, POSE, VELOCITY
 from .sweep import CREEP
 from .world import FREE
 
-__all__ = ["Contacts", "place", "place_all", "bounce"]
+__all__ = ["Contacts", "place", "bounce"]
 
 _MOVING, _STOPPED, _CARRIED = 0, 1, 2
 # Times in a step the world goes back to a pair that was touching and pressed in anyway.
@@ -252,7 +252,7 @@ class Contacts:
         frames = [frames[k] for k in keep]
         state.read_poses(state.stale(frames))
         poses = _core.frame_poses(state.rows, dt, np.array(frames, dtype=np.int64), np.full(len(frames), tau))
-        place_all(self.cid, tables, state, frames, poses, v[keep], w[keep])
+        _place_all(self.cid, tables, state, frames, poses, v[keep], w[keep])
         for f in carried + stopped:
             vf, wf = paths.twist(f)
             place(self.cid, tables, state, f, pose7(paths.com(f, 1.0)), vf, wf)
@@ -484,6 +484,15 @@ class Contacts:
         return c
 
 
+def _place_all(cid, tables, state, frames, poses, v, w):
+    """``place`` for each of ``frames``, with poses (n, 7) and velocities v, w (n, 3)."""
+    for f, pose, vf, wf in zip(frames, poses.tolist(), v.tolist(), w.tolist()):
+        b = tables.keys[f][0]
+        raw.resetBasePositionAndOrientation(b, pose[:3], pose[3:], physicsClientId=cid)
+        raw.resetBaseVelocity(b, vf, wf, physicsClientId=cid)
+    state.rows[frames, POSE], state.rows[frames, VELOCITY], state.rows[frames, ANGULAR_VELOCITY] = poses, v, w
+
+
 # ------------------------------------------------------- shared with articulated.py
 def place(cid, tables, state, f, pose, v, w):
     """Put free frame f's body at ``pose`` (centre of mass: position, quaternion) with
@@ -492,15 +501,6 @@ def place(cid, tables, state, f, pose, v, w):
     raw.resetBasePositionAndOrientation(b, pose[:3].tolist(), pose[3:].tolist(), physicsClientId=cid)
     raw.resetBaseVelocity(b, np.asarray(v).tolist(), np.asarray(w).tolist(), physicsClientId=cid)
     state.rows[f, POSE], state.rows[f, VELOCITY], state.rows[f, ANGULAR_VELOCITY] = pose, v, w
-
-
-def place_all(cid, tables, state, frames, poses, v, w):
-    """``place`` for each of ``frames``, with poses (n, 7) and velocities v, w (n, 3)."""
-    for f, pose, vf, wf in zip(frames, poses.tolist(), v.tolist(), w.tolist()):
-        b = tables.keys[f][0]
-        raw.resetBasePositionAndOrientation(b, pose[:3], pose[3:], physicsClientId=cid)
-        raw.resetBaseVelocity(b, vf, wf, physicsClientId=cid)
-    state.rows[frames, POSE], state.rows[frames, VELOCITY], state.rows[frames, ANGULAR_VELOCITY] = poses, v, w
 
 
 def bounce(cid, tables, d, k, v, v_k, normal):
