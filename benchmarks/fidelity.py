@@ -44,11 +44,12 @@ The families (seeds by default; ``--quick``): 1 ``head_on`` (9 variants: restitu
 4 ``planks`` (6; 2), 5 ``rain`` (48 boxes, 4 seeds; 1; and 100 and 1000 boxes for cost only,
 one seed; 100 only with --quick), 6a ``arm`` (8; 2), 6b ``biped`` (8; 2), 7 ``pusher`` (8; 2),
 8 ``stack`` (12; 3). ``--study K1,K2,..`` prints the references' figures at each dt/K instead
-(how K was chosen).
+(how K was chosen). ``--maximal`` builds every body in maximal coordinates
+(``useMaximalCoordinates=True``) for every method, into ``fidelity_maximal.csv`` and ``.png``.
 
 Run
 ---
-    python benchmarks/fidelity.py                   # all families, ~6 min on 2 cores
+    python benchmarks/fidelity.py                   # all families, ~2 min on 2 cores
     python benchmarks/fidelity.py --quick           # ~1 min: fewer seeds and methods
     python benchmarks/fidelity.py --families head_on,table --seeds 4 --knob max_partial_steps=4
 
@@ -133,7 +134,7 @@ def run_one(fam_key, variant, seed, method, phase=0.0, cid=None):
     h = fam.dt / K
     p.setPhysicsEngineParameter(fixedTimeStep=h, numSubSteps=sub, physicsClientId=cid)
     p.setGravity(0, 0, -G, physicsClientId=cid)
-    w = World(cid, fam.dt, h, maximal=kind == "native")
+    w = World(cid, fam.dt, h, maximal=kind == "native" or MAXIMAL[0])
     rng = np.random.default_rng([list(FAMILIES).index(fam_key), fam.variants.index(variant), seed])
     s = fam.build(w, rng, variant)
     if kind == "native":
@@ -170,6 +171,7 @@ def run_one(fam_key, variant, seed, method, phase=0.0, cid=None):
 
 
 TIMING_REPEATS = [3]  # runs of a timed method's job: the fastest is its cost (load from elsewhere only adds)
+MAXIMAL = [False]  # --maximal: every body in maximal coordinates
 
 
 def _job(args):
@@ -481,6 +483,8 @@ def main(argv=None):
     ap.add_argument("--jobs", type=int, default=min(2, os.cpu_count() or 1), help="worker processes (default 2)")
     ap.add_argument("--out", default=None, help="directory for fidelity.csv and fidelity.png (default: "
                     "benchmarks/results/ and docs/)")
+    ap.add_argument("--maximal", action="store_true",
+                    help="every body in maximal coordinates, for every method (fidelity_maximal.csv, .png)")
     ap.add_argument("--study", default=None, metavar="K1,K2,..",
                     help="only the references' convergence: plain at dt/K for each K (the figures per K)")
     args = ap.parse_args(argv)
@@ -492,7 +496,8 @@ def main(argv=None):
     methods = methods[:2] + [f"boxccd {k.strip()}" for k in args.knob] + methods[2:]
     if "plain" not in methods:
         methods.insert(0, "plain")
-    name = "fidelity_quick" if args.quick else "fidelity"  # a quick run never overwrites the full run's outputs
+    # a quick or maximal run never overwrites the full run's outputs
+    name = ("fidelity_quick" if args.quick else "fidelity") + ("_maximal" if args.maximal else "")
     csv_path = os.path.join(args.out or os.path.join(ROOT, "benchmarks", "results"), name + ".csv")
     png_path = os.path.join(args.out or os.path.join(ROOT, "docs"), name + ".png")
 
@@ -506,6 +511,7 @@ def main(argv=None):
     print(f"code: {code_version()}; bullet_boxccd imported from {os.path.dirname(bullet_boxccd.__file__)}")
     print(f"families: {', '.join(fams)}; methods: {', '.join(methods)}; jobs: {args.jobs}")
     TIMING_REPEATS[0] = max(1, args.repeats)
+    MAXIMAL[0] = args.maximal
     t0 = time.perf_counter()
     if args.study:
         study(fams, [int(k) for k in args.study.split(",")], seeds_of, args.jobs)
