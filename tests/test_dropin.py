@@ -270,6 +270,29 @@ def test_kinematic_and_mocap_paddles_leave_no_cube_behind_and_never_stick(cid, m
         assert lag < 1.2, (mode, seed, lag)  # the paddle is not held back (plain lags up to 0.5 m)
 
 
+def test_partial_steps_taken_again_shorter_leave_the_rest_of_the_world_as_pybullet_moves_it(cid):
+    """A mass-0 box given a velocity before every step (pybullet moves it by v dt) and a free
+    box flying far away while a spinning cube strikes a wall corner first: the partial
+    steps after the strike, taken again shorter when it spins the cube past ``max_turn``
+    until they are used up, end every step at its end, with both boxes exactly where plain
+    pybullet puts them."""
+    reset(cid)
+    box(cid, [0.005, 1, 1], [0, 0, 0], mass=0.0)
+    carrier = box(cid, [0.1, 0.1, 0.1], [-1.0, 3.0, 0], mass=0.0)
+    flyer = box(cid, [0.1, 0.1, 0.1], [-1.0, -3.0, 0])
+    p.resetBaseVelocity(flyer, [3.0, 0, 0], [0, 0, 0], physicsClientId=cid)
+    cube = box(cid, [0.05] * 3, [-0.5, 0.0, 0.0], orn=p.getQuaternionFromEuler([0.3, 0.5, 0.2]))
+    throw(cid, cube, speed=200.0, spin=(20.0, -30.0, 10.0))
+    ccd = BoxCCD(cid, max_turn=0.05)
+    struck = 0
+    for _ in range(12):
+        p.resetBaseVelocity(carrier, [10.0, 0, 0], [0, 0, 0], physicsClientId=cid)
+        struck += len(ccd.step())
+    assert struck and ccd.stats.partial_steps > ccd.stats.rewinds  # struck, in pieces
+    assert x_of(cid, carrier) == pytest.approx(-1.0 + 12 * 10.0 * DT, abs=1e-9)
+    assert x_of(cid, flyer) == pytest.approx(-1.0 + 12 * 3.0 * DT, abs=1e-9)
+
+
 # --------------------------------------------------------------- world changes
 def test_removed_and_recreated_body_with_the_same_id_is_swept(cid):
     """The usual RL reset: remove a body and create another, which pybullet gives the
@@ -361,7 +384,8 @@ def test_substeps_are_each_swept(cid, substeps):
     dict(fit_tolerance=0.0), dict(fit_tolerance=2.0), dict(penetration=1.0), dict(penetration=0.0),
     dict(penetration=float("nan")), dict(max_partial_steps=-1), dict(max_partial_steps=2.5),
     dict(depth_tolerance=-1.0), dict(depth_tolerance=float("nan")), dict(sweep_distance=-0.01),
-    dict(sweep_distance="far"), dict(self_collision_bodies=[999]), dict(tolerances=1e-12),
+    dict(sweep_distance="far"), dict(self_collision_bodies=[999]), dict(tolerances=1e-12), dict(max_turn=0.0),
+    dict(max_turn=1.0), dict(max_turn=float("nan")),
 ])
 def test_bad_arguments_raise_naming_argument_and_value(cid, kwargs):
     reset(cid)

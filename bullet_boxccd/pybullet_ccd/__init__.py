@@ -96,6 +96,13 @@ class BoxCCD:
         their own, with the velocities they had there (pybullet resolves it at the
         next step).
         At least 0. Default 8.
+    max_turn : float
+        The largest turn (rad) a body of the contact the world was taken back to makes in
+        a partial step: a longer rest of the step is taken in even pieces. In (0, pi/4]:
+        Bullet turns a body at most pi/4 a step, and above that its solver sees a spin
+        that its integration does not make. Shorter pieces follow a spinning body's
+        contact more closely, and its gyroscopic term more stably, at a partial step
+        each. Default pi/4 (just under).
     tolerances : Tolerances
         Solver tolerances.
     """
@@ -103,7 +110,7 @@ class BoxCCD:
     def __init__(self, physics_client_id: int = 0, *, sweep_threshold: float = 0.25, sweep_distance: float = 0.01,
                  fit_tolerance: float = 0.05,
                  penetration: float = 1e-5, depth_tolerance: float = 1e-3, self_collision_bodies=(),
-                 max_partial_steps: int = 8, tolerances: Tolerances = DEFAULT_TOLERANCES):
+                 max_partial_steps: int = 8, max_turn: float = _CLAMP, tolerances: Tolerances = DEFAULT_TOLERANCES):
         self.cid = _client(physics_client_id)
         self.sweep_threshold = _number("sweep_threshold", sweep_threshold, 0.0, math.inf)
         self.sweep_distance = _number("sweep_distance", sweep_distance, 0.0, math.inf)
@@ -111,6 +118,7 @@ class BoxCCD:
         self.penetration = _number("penetration", penetration, 0.0, 1e-3, open_low=True)
         self.depth_tolerance = _number("depth_tolerance", depth_tolerance, 0.0, math.inf)
         self.max_partial_steps = _count("max_partial_steps", max_partial_steps)
+        self.max_turn = _number("max_turn", max_turn, 0.0, 0.25 * math.pi, open_low=True)
         if not isinstance(tolerances, Tolerances):
             raise InvalidInputError(f"tolerances: expected a Tolerances, got {type(tolerances).__name__}")
         self.tolerances = tolerances
@@ -300,7 +308,7 @@ class BoxCCD:
                     self._state.begin(self._known)
                     raw.stepSimulation(physicsClientId=self.cid)
                     self._state.read_velocities()
-                    if k:
+                    if 0 < k < self.max_partial_steps:  # (the last one goes to the end whatever its turn)
                         piece = self._within_clamp(piece, h)
                 t_sim = time.perf_counter()
                 self.stats.seconds["step"] += t_sim - t_start
@@ -337,12 +345,12 @@ class BoxCCD:
 
     def _piece(self, rest):
         """The next partial step's length: the rest of the step, or an even share of it, so
-        that no body of the contact the world was taken back to turns by more than Bullet's
-        clamp of pi/4 a step in it (above the clamp, the turn Bullet integrates is slower
-        than the spin its contact solver sees: a spinning box would press on into what it
-        strikes)."""
-        turn = self._spin() * rest
-        return rest / math.ceil(turn / _CLAMP - 1e-9) if turn > _CLAMP else rest
+        that no body of the contact the world was taken back to turns by more than
+        ``max_turn`` in it (at most Bullet's clamp of pi/4 a step: above it, the turn Bullet
+        integrates is slower than the spin its contact solver sees, and a spinning box
+        would press on into what it strikes)."""
+        turn, most = self._spin() * rest, self.max_turn
+        return rest / math.ceil(turn / most - 1e-9) if turn > most else rest
 
     def _spin(self):
         """The fastest spin (rad/s) of the frames of the contact the world was taken back to."""
@@ -351,18 +359,18 @@ class BoxCCD:
 
     def _within_clamp(self, piece, h):
         """After a partial step of ``piece`` seconds: if the impact at its start spun a body of
-        the contact past Bullet's turn clamp in it, the world goes back to the partial step's
+        the contact past ``max_turn`` in it, the world goes back to the partial step's
         start (every body where its path has it then, with the velocities it started with)
         and takes a partial step short enough for that spin, once (its velocities read).
         Returns its length."""
         st = self._state
         spin = self._spin()
-        if spin * piece <= _CLAMP * (1.0 + 1e-9) or st.twist0 is None:
+        if spin * piece <= self.max_turn * (1.0 + 1e-9) or st.twist0 is None:
             return piece
         self._chains.read(piece, st, True)
         self.contacts.world_to_start(self.world.tables, st, piece)
         self._chains.stop_all(0.0, st)
-        piece /= math.ceil(spin * piece / _CLAMP)
+        piece /= math.ceil(spin * piece / self.max_turn)
         self._take(piece, h)
         st.begin(True)
         raw.stepSimulation(physicsClientId=self.cid)

@@ -91,9 +91,10 @@ class FrameState:
             self.fresh.update(frames)
 
     def stale(self, frames):
-        """Those of ``frames`` whose poses in ``rows`` are not this step's."""
-        fresh, static = self.fresh, self._static
-        return [f for f in frames if f not in fresh and f not in static]
+        """Those of ``frames`` whose poses in ``rows`` are not this step's (a static frame's
+        are, unless the user gave it a velocity: Bullet moves it then)."""
+        fresh, static, moved = self.fresh, self._static, self.with_velocity
+        return [f for f in frames if f not in fresh and (f not in static or f in moved)]
 
     def begin_kinematic(self, moved_static, with_velocity):
         """Before the step: note the static frames the user moved since the last step and
