@@ -91,11 +91,11 @@ class BoxCCD:
     self_collision_bodies : iterable of int
         Bodies whose links collide with each other.
     max_partial_steps : int
-        Partial steps a step may take (each one from a contact on to the step's end).
-        When they are used up, the bodies of each remaining contact go back to it on
-        their own, with the velocities they had there (pybullet resolves it at the
-        next step).
-        At least 0. Default 8.
+        Times a step may take the world back to a contact (each time, the rest of the
+        step is simulated again). After that the rest goes on to the step's end (in
+        pieces under ``max_turn``) and the bodies of each remaining contact go back to it
+        on their own, with the velocities they had there (pybullet resolves it as the
+        next step begins). At least 0. Default 8.
     max_turn : float
         The largest turn (rad) a body of the contact the world was taken back to makes in
         a partial step: a longer rest of the step is taken in even pieces. In (0, pi/4]:
@@ -302,13 +302,14 @@ class BoxCCD:
         t_start, elapsed, piece, events = time.perf_counter(), 0.0, h, []
         self._acted, self._struck, self._presses = set(), struck, {}
         try:
-            for k in range(1 + self.max_partial_steps):
+            k = 0
+            while True:
                 self._state.begin_kinematic(moved_static, with_velocity)
                 if not stepped:
                     self._state.begin(self._known)
                     raw.stepSimulation(physicsClientId=self.cid)
                     self._state.read_velocities()
-                    if 0 < k < self.max_partial_steps:  # (the last one goes to the end whatever its turn)
+                    if k:
                         piece = self._within_clamp(piece, h)
                 t_sim = time.perf_counter()
                 self.stats.seconds["step"] += t_sim - t_start
@@ -319,13 +320,15 @@ class BoxCCD:
                 elapsed += tau * piece
                 if h - elapsed <= 1e-9 * h:
                     break
-                # The world stands at ``elapsed``: simulate the rest from there, the last
-                # partial step to the end whatever its length.
+                # The world stands at ``elapsed``: simulate the rest from there, in pieces under
+                # the turn limit (once the world has gone back max_partial_steps times, no
+                # contact takes it back again: the pieces go on to the end).
                 moved_static, user_moved = [], set()
-                piece = h - elapsed if k + 1 == self.max_partial_steps else self._piece(h - elapsed)
+                piece = self._piece(h - elapsed)
                 self.stats.partial_steps += 1
                 self._take(piece, h)
                 t_start = time.perf_counter()
+                k += 1
         finally:
             if self._partial:
                 raw.setPhysicsEngineParameter(fixedTimeStep=h, contactERP=self.world.journal.contact_erp,
