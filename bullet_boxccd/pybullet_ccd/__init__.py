@@ -91,11 +91,11 @@ class BoxCCD:
     self_collision_bodies : iterable of int
         Bodies whose links collide with each other.
     max_partial_steps : int
-        Times a step may take the world back to a contact (each time, the rest of the
-        step is simulated again). After that the rest goes on to the step's end (in
-        pieces under ``max_turn``) and the bodies of each remaining contact go back to it
-        on their own, with the velocities they had there (pybullet resolves it as the
-        next step begins). At least 0. Default 8.
+        Partial steps (the rest of the step simulated again from a contact, or a piece of
+        it under ``max_turn``) after which a contact no longer takes the world back: the
+        rest goes on to the step's end, still in pieces under ``max_turn``, and the bodies
+        of each remaining contact go back to it on their own, with the velocities they had
+        there (pybullet resolves it as the next step begins). At least 0. Default 8.
     max_turn : float
         The largest turn (rad) a body of the contact the world was taken back to makes in
         a partial step: a longer rest of the step is taken in even pieces. In (0, pi/4]:
@@ -321,8 +321,8 @@ class BoxCCD:
                 if h - elapsed <= 1e-9 * h:
                     break
                 # The world stands at ``elapsed``: simulate the rest from there, in pieces under
-                # the turn limit (once the world has gone back max_partial_steps times, no
-                # contact takes it back again: the pieces go on to the end).
+                # the turn limit (after max_partial_steps of them no contact takes the world
+                # back again: the pieces go on to the end).
                 moved_static, user_moved = [], set()
                 piece = self._piece(h - elapsed)
                 self.stats.partial_steps += 1
