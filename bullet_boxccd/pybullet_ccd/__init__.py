@@ -93,9 +93,9 @@ class BoxCCD:
     max_partial_steps : int
         Partial steps (the rest of the step simulated again from a contact, or a piece of
         it under ``max_turn``) after which a contact no longer takes the world back: the
-        rest goes on to the step's end, still in pieces under ``max_turn``, and the bodies
-        of each remaining contact go back to it on their own, with the velocities they had
-        there (pybullet resolves it as the next step begins). At least 0. Default 8.
+        rest goes to the step's end in one piece, and the bodies of each remaining contact
+        go back to it on their own, with the velocities they had there (pybullet resolves
+        it as the next step begins). At least 0. Default 8.
     max_turn : float
         The largest turn (rad) a body of the contact the world was taken back to makes in
         a partial step: a longer rest of the step is taken in even pieces. In (0, pi/4]:
@@ -309,7 +309,7 @@ class BoxCCD:
                     self._state.begin(self._known)
                     raw.stepSimulation(physicsClientId=self.cid)
                     self._state.read_velocities()
-                    if k:
+                    if 0 < k <= self.max_partial_steps:  # (not the very last piece: see below)
                         piece = self._within_clamp(piece, h)
                 t_sim = time.perf_counter()
                 self.stats.seconds["step"] += t_sim - t_start
@@ -321,10 +321,11 @@ class BoxCCD:
                 if h - elapsed <= 1e-9 * h:
                     break
                 # The world stands at ``elapsed``: simulate the rest from there, in pieces under
-                # the turn limit (after max_partial_steps of them no contact takes the world
-                # back again: the pieces go on to the end).
+                # the turn limit. After max_partial_steps of them no contact takes the world back
+                # again, and the rest goes to the step's end in one piece (after the last piece
+                # an impact began, taken again shorter if it spun a body past the limit).
                 moved_static, user_moved = [], set()
-                piece = self._piece(h - elapsed)
+                piece = self._piece(h - elapsed) if k < self.max_partial_steps else h - elapsed
                 self.stats.partial_steps += 1
                 self._take(piece, h)
                 t_start = time.perf_counter()
