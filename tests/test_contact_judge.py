@@ -40,7 +40,7 @@ def judge(r, s_touch=None, lo=0.0, with_time=False, swap=False):
 def test_a_pass_through_goes_wrong_from_its_first_depth(swap):
     """A cube crossing a 2 cm wall in the step ends apart on the far side: wrong, acted on
     from the time it is ``penetration`` deep, x = -0.11 + penetration."""
-    c, wrong, s = judge(rows(WALL, (0, 0), CUBE, (-0.5, 0.5)), swap=swap)
+    c, wrong, s, _ = judge(rows(WALL, (0, 0), CUBE, (-0.5, 0.5)), swap=swap)
     assert c is not None and wrong
     assert s == pytest.approx(0.39 + PENETRATION, abs=1e-9)
     assert c.t == pytest.approx(0.39, abs=1e-6)
@@ -51,18 +51,18 @@ def test_a_pass_through_goes_wrong_from_its_first_depth(swap):
 def test_an_overlap_at_the_end_is_wrong_past_the_depth_tolerance(end, wrong, swap):
     """Met inside the step and ending 0.5, 1.5 or 5 mm into the wall: pybullet's own below
     ``depth_tolerance`` (1 mm); wrong beyond it, from x = -0.11 + penetration."""
-    c, got, s = judge(rows(WALL, (0, 0), CUBE, (-0.5, end)), swap=swap)
+    c, got, s, _ = judge(rows(WALL, (0, 0), CUBE, (-0.5, end)), swap=swap)
     assert c is not None and got == wrong
     if wrong:
         assert s == pytest.approx((0.39 + PENETRATION) / (end + 0.5), abs=1e-9)
     else:
         assert np.isnan(s)
-        _, _, s = judge(rows(WALL, (0, 0), CUBE, (-0.5, end)), with_time=True, swap=swap)
+        _, _, s, _ = judge(rows(WALL, (0, 0), CUBE, (-0.5, end)), with_time=True, swap=swap)
         assert s == pytest.approx((0.39 + PENETRATION) / (end + 0.5), abs=1e-9)
 
 
 def test_a_pair_that_stays_apart_has_no_contact():
-    c, wrong, s = _core.judge_contact(*rows(WALL, (0, 0), CUBE, (-0.5, -0.2)), 0.0, 0.0, True, True, PENETRATION,
+    c, wrong, s, _ = _core.judge_contact(*rows(WALL, (0, 0), CUBE, (-0.5, -0.2)), 0.0, 0.0, True, True, PENETRATION,
                                       DEPTH_TOLERANCE, CREEP, TOL)
     assert c is None and not wrong and np.isnan(s)
 
@@ -72,7 +72,7 @@ def test_a_pair_touching_as_the_window_begins_is_judged_on_how_much_deeper_it_en
     """0.1 mm in at the start: pybullet's solver saw it. Wrong if it ends more than
     ``depth_tolerance`` deeper; acted on from the depth at the start plus the creep (2% of
     the wall's 1 cm half thickness, 0.2 mm): x = -0.11 + 0.3 mm."""
-    c, got, s = judge(rows(WALL, (0, 0), CUBE, (-0.1099, end)), s_touch=0.0)
+    c, got, s, _ = judge(rows(WALL, (0, 0), CUBE, (-0.1099, end)), s_touch=0.0)
     assert c is not None and c.initial and got == wrong
     if wrong:
         assert s == pytest.approx((-0.11 + 3e-4 + 0.1099) / (end + 0.1099), abs=1e-9)
@@ -81,7 +81,7 @@ def test_a_pair_touching_as_the_window_begins_is_judged_on_how_much_deeper_it_en
 def test_a_window_later_in_the_step():
     """The same pass through, judged over the window [0.25, 1] of the step: its fractions
     are the window's."""
-    c, wrong, s = judge(rows(WALL, (0, 0), CUBE, (-0.5, 0.5)), lo=0.25)
+    c, wrong, s, _ = judge(rows(WALL, (0, 0), CUBE, (-0.5, 0.5)), lo=0.25)
     assert c is not None and wrong
     assert s == pytest.approx((0.39 + PENETRATION - 0.25) / 0.75, abs=1e-9)
 
@@ -91,5 +91,5 @@ def test_a_box_ending_past_the_middle_of_a_thin_sheet_goes_wrong():
     into each other in y all along) ends 1 cm from the sheet's centre along the contact
     normal: its least overlap is the sheet's 0.3 mm in y, which pybullet would push it out
     along, sideways. Shallow, yet wrong: past the middle."""
-    c, wrong, s = judge(rows((0.1, 4e-4, 0.1), (0, 0), CUBE, (-0.5, -0.01), y_b=0.1004 - 3e-4))
+    c, wrong, s, _ = judge(rows((0.1, 4e-4, 0.1), (0, 0), CUBE, (-0.5, -0.01), y_b=0.1004 - 3e-4))
     assert c is not None and wrong and s == pytest.approx((0.3 + PENETRATION) / 0.49, abs=1e-9)

@@ -365,15 +365,15 @@ class Contacts:
             action = "back" if back and not again else "stop"
         else:
             action = None
-        c, wrong, s_act = _core.judge_contact(paths.rows[i], paths.rows[j], lo, s_touch, action is not None, pushing,
-                                              self.penetration, self.depth_tolerance, CREEP, self.tolerances._core)
+        c, wrong, s_act, normal = _core.judge_contact(paths.rows[i], paths.rows[j], lo, s_touch, action is not None,
+                                                      pushing, self.penetration, self.depth_tolerance, CREEP,
+                                                      self.tolerances._core)
         self.stats.outcomes[Outcome.SEPARATED if c is None else c.outcome] += 1
         info = {"act_at": touch, "action": None, "initial": initial, "window": (lo, 1.0), "contact": c}
         if c is None or action is None:  # c None: the fit's allowance touched, the boxes did not
             return info
         if pushing:
             w = _core.window_rows(paths.rows[[i, j]], lo, 1.0)
-            normal = _normal_at_end(w, s_touch, c)
             if not _overtaken(w if push_a else w[::-1], normal if push_a else -normal, self.penetration):
                 return info
             if math.isnan(s_act):
@@ -485,7 +485,8 @@ class Contacts:
 
 
 def _place_all(cid, tables, state, frames, poses, v, w):
-    """``place`` for each of ``frames``, with poses (n, 7) and velocities v, w (n, 3)."""
+    """Put free frames' bodies at ``poses`` (n, 7: centre of mass position, quaternion)
+    with velocities v, w (n, 3), in pybullet and in the frame-state rows."""
     for f, pose, vf, wf in zip(frames, poses.tolist(), v.tolist(), w.tolist()):
         b = tables.keys[f][0]
         raw.resetBasePositionAndOrientation(b, pose[:3], pose[3:], physicsClientId=cid)
@@ -495,12 +496,9 @@ def _place_all(cid, tables, state, frames, poses, v, w):
 
 # ------------------------------------------------------- shared with articulated.py
 def place(cid, tables, state, f, pose, v, w):
-    """Put free frame f's body at ``pose`` (centre of mass: position, quaternion) with
-    velocities v, w, in pybullet and in the frame-state rows."""
-    b = tables.keys[f][0]
-    raw.resetBasePositionAndOrientation(b, pose[:3].tolist(), pose[3:].tolist(), physicsClientId=cid)
-    raw.resetBaseVelocity(b, np.asarray(v).tolist(), np.asarray(w).tolist(), physicsClientId=cid)
-    state.rows[f, POSE], state.rows[f, VELOCITY], state.rows[f, ANGULAR_VELOCITY] = pose, v, w
+    """``_place_all`` of one frame f: pose (7,), velocities v, w (3,)."""
+    _place_all(cid, tables, state, [f], np.asarray(pose, float)[None], np.asarray(v, float)[None],
+               np.asarray(w, float)[None])
 
 
 def bounce(cid, tables, d, k, v, v_k, normal):
@@ -518,15 +516,6 @@ def bounce(cid, tables, d, k, v, v_k, normal):
 
 
 # ---------------------------------------------------------------- geometry
-def _normal_at_end(w, s, contact):
-    """The contact normal at s, turned to the end of the window with the body whose face
-    it is (for an edge-edge contact, the one that turns less)."""
-    kind = contact.feature.kind
-    angles = [row[PATH_ROW["angle"]][0] for row in w]
-    body = 0 if kind == "OV" else 1 if kind == "VO" else int(np.argmin(angles))
-    return _moved_with(w[body], s, contact.normal)
-
-
 def _overtaken(wk, n, penetration):
     """Whether the pusher's box (row wk[0]) ends the step into or past the box it touched
     (wk[1]): their separation along the contact normal at the end (n, from the pusher),

@@ -4,6 +4,7 @@
 // float64 C-contiguous; shapes are checked by nanobind (rows) or `expect`.
 #include <nanobind/stl/tuple.h>
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <string>
@@ -169,7 +170,8 @@ nb::object paths_window_contact(const BoxPath &a, const BoxPath &b, double lo, d
     return hit_result(window_contact(a, b, lo, hi, tol));
 }
 
-// (contact or None, wrong, depth time): judge_contact of rows a, b over the window [lo, 1].
+// (contact or None, wrong, depth time, normal at the window's end (3,)): judge_contact of
+// rows a, b over the window [lo, 1].
 nb::tuple py_judge_contact(const In<kPathBoxSize> &row_a, const In<kPathBoxSize> &row_b, double lo, double s_touch,
                            bool judge, bool with_time, double penetration, double depth_tolerance, double creep,
                            const Tolerances &tol) {
@@ -180,7 +182,10 @@ nb::tuple py_judge_contact(const In<kPathBoxSize> &row_a, const In<kPathBoxSize>
     validate(tol);
     const Judgement j = judge_contact(row_a.data(), row_b.data(), lo, s_touch, judge, with_time, penetration,
                                       depth_tolerance, creep, tol);
-    return nb::make_tuple(hit_result(j.contact), j.wrong, j.depth_time);
+    double *normal;
+    auto n = new_array<3>({3}, normal);
+    std::copy(j.normal_at_end.begin(), j.normal_at_end.end(), normal);
+    return nb::make_tuple(hit_result(j.contact), j.wrong, j.depth_time, n);
 }
 
 double paths_depth(const BoxPath &a, const BoxPath &b, double tau) {

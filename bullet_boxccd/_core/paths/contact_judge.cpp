@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 #include "solver/bms.hpp"
 #include "solver/vec.hpp"
@@ -12,18 +13,22 @@ namespace {
 
 using pr = PathRow;
 
-// v turned with a row's frame from s to the end of its path: by (1 - s) times its angle
-// about its axis (Rodrigues).
+// v turned with a row's frame from s to the end of its path: R(1) R(s)^T v.
 Vec3 turned_to_end(const double *row, double s, const Vec3 &v) {
-    const Vec3 k{row[pr::kAxis], row[pr::kAxis + 1], row[pr::kAxis + 2]};
-    const double th = (1.0 - s) * row[pr::kAngle];
-    const Vec3 kv = cross3(k, v);
-    return v + std::sin(th) * kv + (1.0 - std::cos(th)) * cross3(k, kv);
+    double Xs[16], X1[16];
+    row_pose(row, s, Xs);
+    row_pose(row, 1.0, X1);
+    Vec3 local{}, out{};
+    for (int i = 0; i < 3; ++i) local[i] = Xs[i] * v[0] + Xs[4 + i] * v[1] + Xs[8 + i] * v[2];
+    for (int i = 0; i < 3; ++i) out[i] = X1[4 * i] * local[0] + X1[4 * i + 1] * local[1] + X1[4 * i + 2] * local[2];
+    return out;
 }
 
 // The contact normal at s turned to the end of the window with the body whose face it
-// is (for an edge-edge contact, the one that turns less).
+// is (for an edge-edge contact, the one that turns less); NaN without a facet.
 Vec3 normal_at_end(const double *row_a, const double *row_b, double s, const Hit &hit) {
+    constexpr double nan = std::numeric_limits<double>::quiet_NaN();
+    if (hit.facet < 0) return {nan, nan, nan};
     const Kind kind = facet_kind(hit.facet);
     const bool first = kind == Kind::OV || (kind == Kind::EE && row_a[pr::kAngle] <= row_b[pr::kAngle]);
     return turned_to_end(first ? row_a : row_b, s, hit.normal);
@@ -47,7 +52,9 @@ Judgement judge_contact(const double *row_a, const double *row_b, double lo, dou
     const RowBoxPath a(wa), b(wb);
     Judgement out;
     out.contact = window_contact(a, b, s_touch, 1.0, tol);
-    if (out.contact.outcome == Outcome::Separated || !judge) return out;
+    if (out.contact.outcome == Outcome::Separated) return out;
+    out.normal_at_end = normal_at_end(wa, wb, s_touch, out.contact);
+    if (!judge) return out;
     const double *ha = a.half_extents(), *hb = b.half_extents();
     const bool initial = s_touch == 0.0;
     double target = penetration, start = 0.0;
@@ -62,16 +69,15 @@ Judgement judge_contact(const double *row_a, const double *row_b, double lo, dou
         timed = true;
         return out.depth_time;
     };
-    const Hit &c = out.contact;
-    if (path_depth(a, b, 1.0) - start > depth_tolerance || c.facet < 0 ||
-        !(std::isfinite(c.normal[0]) && std::isfinite(c.normal[1]) && std::isfinite(c.normal[2]))) {
+    const Vec3 &n = out.normal_at_end;
+    if (path_depth(a, b, 1.0) - start > depth_tolerance ||
+        !(std::isfinite(n[0]) && std::isfinite(n[1]) && std::isfinite(n[2]))) {
         out.wrong = true;
     } else {
         Vec3 axis;
         if (path_separation(a, b, 1.0, axis.data()) <= 0.0) {
             out.wrong = !std::isnan(depth_time());  // apart: overlapped that deep on the way
         } else {
-            const Vec3 n = normal_at_end(wa, wb, s_touch, c);
             double Xa[16], Xb[16];
             row_pose(wa, 1.0, Xa);
             row_pose(wb, 1.0, Xb);
