@@ -293,6 +293,84 @@ def test_partial_steps_taken_again_shorter_leave_the_rest_of_the_world_as_pybull
     assert x_of(cid, flyer) == pytest.approx(-1.0 + 12 * 3.0 * DT, abs=1e-9)
 
 
+def _loose_bodies(cid):
+    """A sphere (spinning), a maximal-coordinate capsule (spinning about its axis) and a free-floating two-link
+    capsule body (its joint still), all flying far from any box: bodies with no box."""
+    sphere = p.createCollisionShape(p.GEOM_SPHERE, radius=0.1, physicsClientId=cid)
+    capsule = p.createCollisionShape(p.GEOM_CAPSULE, radius=0.05, height=0.3, physicsClientId=cid)
+    ball = p.createMultiBody(1.0, sphere, basePosition=[5, 5, 5], physicsClientId=cid)
+    pill = p.createMultiBody(1.0, capsule, basePosition=[5, -5, 5], useMaximalCoordinates=True, physicsClientId=cid)
+    pair = p.createMultiBody(1.0, capsule, basePosition=[-5, 5, 5], linkMasses=[1.0],
+                             linkCollisionShapeIndices=[capsule], linkVisualShapeIndices=[-1],
+                             linkPositions=[[0, 0, 0.4]], linkOrientations=[[0, 0, 0, 1]],
+                             linkInertialFramePositions=[[0, 0, 0]], linkInertialFrameOrientations=[[0, 0, 0, 1]],
+                             linkParentIndices=[0], linkJointTypes=[p.JOINT_REVOLUTE], linkJointAxis=[[1, 0, 0]],
+                             physicsClientId=cid)
+    p.setJointMotorControl2(pair, 0, p.VELOCITY_CONTROL, force=0, physicsClientId=cid)
+    for b, v, w in ((ball, [1, 0, 2], [3, 1, 0]), (pill, [0, 1, 2], [0, 0, 2]), (pair, [1, 1, 0], [0, 0, 0])):
+        for link in range(-1, p.getNumJoints(b, physicsClientId=cid)):
+            p.changeDynamics(b, link, linearDamping=0, angularDamping=0, physicsClientId=cid)
+        p.resetBaseVelocity(b, v, w, physicsClientId=cid)
+    return ball, pill, pair
+
+
+def _state_of(cid, b):
+    pos, orn = p.getBasePositionAndOrientation(b, physicsClientId=cid)
+    v, w = p.getBaseVelocity(b, physicsClientId=cid)
+    n = p.getNumJoints(b, physicsClientId=cid)
+    joints = [x for s in p.getJointStates(b, range(n), physicsClientId=cid) for x in s[:2]] if n else []
+    return np.array([*pos, *orn, *v, *w, *joints])
+
+
+def test_bodies_with_no_box_go_back_with_the_world(cid):
+    """When a contact takes the world back to its time, the bodies BoxCCD sweeps no box of
+    go back too: a sphere, a maximal-coordinate capsule and a two-link capsule body in
+    free flight end each step where plain pybullet has them (the rest of the step
+    simulated again would otherwise move them twice over the time gone back). The cube
+    strikes face on, so the rest of each step goes in one piece: pybullet's integration
+    over it then ends a free flight exactly where the whole step does, gravity too."""
+    ends = {}
+    for use in (False, True):
+        reset(cid, gravity=-9.81)
+        box(cid, [0.005, 1, 1], [0, 0, 0], mass=0.0)
+        cube = box(cid, [0.05] * 3, [-0.5, 0.0, 0.0])
+        p.changeDynamics(cube, -1, restitution=0.8, physicsClientId=cid)
+        throw(cid, cube, speed=200.0, spin=(0.0, 0.0, 0.0))
+        loose = _loose_bodies(cid)
+        ccd = run(cid, use, 12)
+        ends[use] = [_state_of(cid, b) for b in loose]
+    assert ccd.stats.rewinds and ccd.stats.partial_steps
+    for plain, swept in zip(ends[False], ends[True]):
+        np.testing.assert_allclose(swept, plain, rtol=0, atol=1e-9)
+
+
+def test_a_body_that_cannot_go_back_is_named_when_the_world_goes_back(cid):
+    """A maximal-coordinate body's links have no state pybullet gives: one warning names
+    the body, the first time a contact takes the world back (none while none does)."""
+    reset(cid)
+    box(cid, [0.005, 1, 1], [0, 0, 0], mass=0.0)
+    cube = box(cid, [0.05] * 3, [-1.5, 0.0, 0.0])
+    sphere = p.createCollisionShape(p.GEOM_SPHERE, radius=0.1, physicsClientId=cid)
+    chained = p.createMultiBody(1.0, sphere, basePosition=[5, 5, 5], linkMasses=[1.0],
+                                linkCollisionShapeIndices=[sphere], linkVisualShapeIndices=[-1],
+                                linkPositions=[[0, 0, 0.4]], linkOrientations=[[0, 0, 0, 1]],
+                                linkInertialFramePositions=[[0, 0, 0]], linkInertialFrameOrientations=[[0, 0, 0, 1]],
+                                linkParentIndices=[0], linkJointTypes=[p.JOINT_REVOLUTE], linkJointAxis=[[1, 0, 0]],
+                                useMaximalCoordinates=True, physicsClientId=cid)
+    ccd = BoxCCD(cid)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        for _ in range(3):
+            ccd.step()
+        assert not [w for w in caught if "taken back" in str(w.message)]
+        throw(cid, cube, speed=100.0, spin=(0, 0, 0))
+        for _ in range(40):
+            ccd.step()
+    assert ccd.stats.rewinds
+    named = [w for w in caught if "taken back" in str(w.message)]
+    assert len(named) == 1 and f"body {chained} " in str(named[0].message)
+
+
 # --------------------------------------------------------------- world changes
 def test_removed_and_recreated_body_with_the_same_id_is_swept(cid):
     """The usual RL reset: remove a body and create another, which pybullet gives the

@@ -48,6 +48,7 @@ from .articulated import Articulated
 from .contacts import PRESSES, Contacts
 from .events import BoxCCDWarning, CCDEvent, CCDStats, ClientDisconnectedError
 from .layout import ANGULAR_VELOCITY
+from .others import Others
 from .state import FrameState
 from .sweep import jump_sweep, sweep
 from .world import STATIC, World, warn_once
@@ -159,6 +160,7 @@ class BoxCCD:
             rigid_reach = self._sweep_reach.copy()
             rigid_reach[self._chains.boxes] = math.inf  # swept on their own paths (articulated)
             self._state = FrameState(self.cid, t, rigid_reach, self._chains.frames)
+            self._others = Others(self.cid, t.other_rigid, t.other_chains, t.other_stuck, self._warn)
             self._watched = bool(self._state.moving) or bool(self._chains.watched)
             self._known = False
             self.stats.tracked_boxes = len(t.half)
@@ -247,7 +249,16 @@ class BoxCCD:
             fast = st.sweeper.fast(self._dt, st.moving, st.twists()) if st.moving else None
             if fast is None and (not self._chains.watched or self._chains.idle(self._dt, st)):
                 return []
-            events = self._step(self._dt, 0.0, self._dt, struck, stepped=True, fast=fast)
+            sw = None
+            if not self._chains.bodies:
+                # Free boxes only, and nothing the user moved: the sweep is all there is to
+                # the step unless it finds a contact.
+                st.fresh = set()
+                sw = sweep(cid, self.world.tables, st, self._dt, self.fit_tolerance, self.tolerances,
+                           self.penetration, self.stats, time.perf_counter(), fast, self._at_clamp)
+                if sw is None:
+                    return []
+            events = self._step(self._dt, 0.0, self._dt, struck, stepped=True, fast=fast, sw=sw)
         else:
             events = self._full_step(struck)
             self.stats.steps += 1
@@ -290,13 +301,13 @@ class BoxCCD:
         finally:
             raw.setPhysicsEngineParameter(fixedTimeStep=dt, numSubSteps=n, physicsClientId=self.cid)
 
-    def _step(self, h, offset, dt, struck, stepped=False, fast=None):
+    def _step(self, h, offset, dt, struck, stepped=False, fast=None, sw=None):
         """One stepSimulation of h seconds (``offset`` into the user's step of dt), swept,
         then the rest of it again from each contact the world is taken back to, until the
         step is done. ``struck``: frames the last step stopped at an impact (pybullet's
         solver meets it as this step begins). ``stepped``: pybullet took the step already,
-        the velocities are read, and ``fast`` are the fast boxes (``Sweeper.fast``; None:
-        none)."""
+        the velocities are read, ``fast`` are the fast boxes (``Sweeper.fast``; None:
+        none) and ``sw`` their sweep, if it was taken already."""
         self._velocities_set()
         moved_static, with_velocity, user_moved = self._user_moves()
         t_start, elapsed, piece, events = time.perf_counter(), 0.0, h, []
@@ -314,8 +325,8 @@ class BoxCCD:
                 t_sim = time.perf_counter()
                 self.stats.seconds["step"] += t_sim - t_start
                 back = k < self.max_partial_steps
-                found, tau = self._sweep(piece, t_sim, user_moved, back, stepped, fast)
-                stepped, fast = False, None
+                found, tau = self._sweep(piece, t_sim, user_moved, back, stepped, fast, sw)
+                stepped, fast, sw = False, None, None
                 events += [_shifted(e, offset + elapsed, dt) for e in found]
                 elapsed += tau * piece
                 if h - elapsed <= 1e-9 * h:
@@ -374,6 +385,7 @@ class BoxCCD:
         self._chains.read(piece, st, True)
         self.contacts.world_to_start(self.world.tables, st, piece)
         self._chains.stop_all(0.0, st)
+        self._others.back(piece, 0.0, self._gravity)
         piece /= math.ceil(spin * piece / self.max_turn)
         self._take(piece, h)
         st.begin(True)
@@ -383,7 +395,7 @@ class BoxCCD:
         self.stats.partial_steps += 1
         return piece
 
-    def _sweep(self, h, t0, user_moved, back, stepped=False, fast=None):
+    def _sweep(self, h, t0, user_moved, back, stepped=False, fast=None, sw=None):
         """Sweep the (partial) step of h seconds just taken (the moving frames' velocities
         read) and resolve its contacts: with
         ``back``, the world goes back to the earliest contact pybullet would resolve
@@ -396,8 +408,9 @@ class BoxCCD:
         self._chains.read(h, st, self._known)
         self._known = True
         st.end_kinematic(h)
-        sw = None if stepped and fast is None else sweep(self.cid, t, st, h, self.fit_tolerance, self.tolerances,
-                                                          self.penetration, self.stats, t0, fast, self._at_clamp)
+        if sw is None and not (stepped and fast is None):
+            sw = sweep(self.cid, t, st, h, self.fit_tolerance, self.tolerances, self.penetration, self.stats, t0, fast,
+                       self._at_clamp)
         jw = jump_sweep(self.cid, t, st, h, self.fit_tolerance, self.tolerances, self.penetration, self.stats)
         found = self._chains_find(h)
         if sw is None and jw is None and not found:
@@ -417,6 +430,7 @@ class BoxCCD:
                                                 self._struck, self._presses)
             if tau < 1.0:
                 self._chains.stop_all(tau, st)
+                self._others.back(h, tau, self._gravity)
                 if self.contacts.acted:
                     self._acted, self._struck = self.contacts.acted, self.contacts.struck
                 else:

@@ -43,6 +43,7 @@ from .chain import read_chain
 from .contacts import bounce, place
 from .events import CCDEvent
 from .layout import ANGULAR_VELOCITY, POSE, TWIST, VELOCITY
+from .others import joint_layout, put_body
 from .sweep import CREEP, overlap_query
 from .world import FREE, LINK
 
@@ -63,9 +64,8 @@ class _Body:
     paths: dict = field(default_factory=dict)  # box -> BoxPath of the current step
     link_of_frame: np.ndarray = None  # (len(frames),) int64: each frame's link
     frame_index: np.ndarray = None  # (len(frames),) int64: ``frames``
-    moving_joints: list = None  # its joints that are not fixed, and where each one's
-    q_spans: list = None  # coordinates and velocities lie in the flat q and qdot
-    qdot_spans: list = None
+    layout: tuple = None  # its joints that are not fixed, and their spans in q and qdot (joint_layout)
+    moving_joints: list = None
     start: tuple = None  # (base velocity (6,), qdot) when the step began, if known
     box_links: np.ndarray = None  # (len(boxes),) each box's link (-1: base), its pose on the link's frame
     box_X: np.ndarray = None  # (len(boxes), 4, 4), half extents (len(boxes), 3) and sweep reach (len(boxes),)
@@ -109,13 +109,8 @@ class Articulated:
                 per_link[link] = (max(r, float(tables.radius[ids[k]])), min(reach, float(rec.box_reach[k])))
             rec.base_idle = per_link.pop(-1, None)
             rec.link_idle = (list(per_link), *zip(*per_link.values())) if per_link else None
-            ch = rec.chain
-            rec.moving_joints = [j for j in range(ch.n_links) if ch.joint_type[j] != pybullet.JOINT_FIXED]
-            spherical = [ch.joint_type[j] == pybullet.JOINT_SPHERICAL for j in rec.moving_joints]
-            rec.q_spans = [(int(ch.q_index[j]), int(ch.q_index[j]) + (4 if s else 1))
-                           for j, s in zip(rec.moving_joints, spherical)]
-            rec.qdot_spans = [(int(ch.qdot_index[j]), int(ch.qdot_index[j]) + (3 if s else 1))
-                              for j, s in zip(rec.moving_joints, spherical)]
+            rec.layout = joint_layout(rec.chain)
+            rec.moving_joints = rec.layout[0]
         # The bodies a box of which can meet another tracked box: one on another body, or its own (self-collision).
         self.watched = [rec for rec in self.bodies.values()
                         if len(tables.half) > len(rec.boxes) or (rec.ancestors is not None and len(rec.boxes) > 1)]
@@ -414,12 +409,7 @@ class Articulated:
             twist = rec.start[0] + tau * (twist - rec.start[0])
             qdot = rec.start[1] + tau * (qdot - rec.start[1])
         rec.base_state[7:13], rec.qdot = twist, qdot  # the next (partial) step starts from these
-        raw.resetBasePositionAndOrientation(rec.body, base[:3].tolist(), base[3:].tolist(), physicsClientId=cid)
-        raw.resetBaseVelocity(rec.body, twist[:3].tolist(), twist[3:].tolist(), physicsClientId=cid)
-        if rec.moving_joints:
-            q, qdot = m.joint_positions(tau).tolist(), qdot.tolist()
-            raw.resetJointStatesMultiDof(rec.body, rec.moving_joints, [q[a:b] for a, b in rec.q_spans],
-                                         [qdot[a:b] for a, b in rec.qdot_spans], physicsClientId=cid)
+        put_body(cid, rec.body, base, twist, rec.layout, m.joint_positions(tau), qdot)
         ends = m.link_poses(tau)
         for f in rec.frames:
             link = rec.links[f]

@@ -31,7 +31,6 @@ import re
 import sys
 import warnings
 from dataclasses import dataclass, field
-from functools import cached_property
 
 import numpy as np
 import pybullet
@@ -68,6 +67,8 @@ class _Body:
     left: list = field(default_factory=list)  # (link, what): shapes left to pybullet
     unreadable: list = field(default_factory=list)  # (link, why): boxes that could not be read
     maximal: bool = False
+    moves: str = ""  # how Bullet moves it: "rigid" (a free single body), "chain" (links on joints), "soft"
+    unposed: bool = False  # a maximal-coordinate body with links (pybullet gives no state of them)
     # Boxes pybullet has but BoxCCD cannot place: [(link, number of boxes)] and why.
     untracked: list = field(default_factory=list)
     untracked_why: str = ""
@@ -90,16 +91,17 @@ class Tables:
     frame_boxes: list  # frame -> its boxes
     frames_of: dict  # body -> its frames
     filters: Filters
+    free_frames: list  # the free bodies' frames
+    # Dynamic bodies with no frame here (others.py): single rigid ones, articulated ones, and
+    # {body: why} those whose state pybullet does not give.
+    other_rigid: list
+    other_chains: list
+    other_stuck: dict
 
     @property
     def moving(self) -> list:
         """Frames whose velocity is read at every step (every kind but STATIC)."""
         return np.flatnonzero(self.kind != STATIC).tolist()
-
-    @cached_property
-    def free_frames(self) -> list:
-        """The free bodies' frames."""
-        return np.flatnonzero(self.kind == FREE).tolist()
 
 
 class World:
@@ -169,9 +171,11 @@ class World:
         rec = _Body(maximal=info[10] == _MAXIMAL)
         if info[10] == _SOFT:
             rec.left.append((-1, "soft body"))
+            rec.moves = "soft"
             return rec
         n_joints = raw.getNumJoints(b, physicsClientId=cid)
         fixed_base = info[0] == 0.0
+        rec.moves = "chain" if n_joints else "" if fixed_base else "rigid"
         names = self._link_names(b, n_joints)
         from_file = self._mjcf_links(b, rec, names, n_joints)
         shadow = None
@@ -179,6 +183,7 @@ class World:
                 pybullet.GEOM_HEIGHTFIELD:
             shadow = self._shadow.boxes(cid, self.journal, b)
             if shadow is not None:  # pybullet poses no link of a maximal-coordinate body (getNumJoints is 0)
+                rec.unposed = any(lk >= 0 for lk in shadow)
                 left = [(lk, len(bx)) for lk, bx in sorted(shadow.items()) if lk >= 0 and bx]
                 if left:
                     rec.untracked = left
@@ -219,6 +224,7 @@ class World:
             rec.untracked = self._file_boxes(load)
             return {}
         if rec.maximal:  # loadMJCF(useMultiBody=0): pybullet keeps only the root as the body
+            rec.unposed = len(model.links) > 1
             left = [(i - 1, len(lk.boxes)) for i, lk in enumerate(model.links) if i and lk.boxes]
             if left:
                 rec.untracked = left
@@ -340,13 +346,29 @@ class World:
         frames_of = {}
         for f, (b, _) in enumerate(keys):
             frames_of.setdefault(b, []).append(f)
+        rigid, chains, stuck = [], [], {}
+        for b in ids:
+            rec = self._bodies[b]
+            if rec.moves == "soft":
+                stuck[b] = "a soft body"
+            elif rec.unposed:
+                stuck[b] = "pybullet gives no state of a maximal-coordinate body's links"
+            elif any(fr.kind != STATIC for fr in rec.frames):
+                continue  # its boxes' frames go back (contacts.py, articulated.py)
+            elif rec.moves == "chain":
+                chains.append(b)
+            elif rec.moves == "rigid":
+                rigid.append(b)
+        kind = np.array(kinds, dtype=np.int8)
         self.tables = Tables(
             keys=keys, index={k: i for i, k in enumerate(keys)},
-            body=np.array([k[0] for k in keys], dtype=np.int64), kind=np.array(kinds, dtype=np.int8),
+            body=np.array([k[0] for k in keys], dtype=np.int64), kind=kind,
             self_collides=np.array(selfc, dtype=np.uint8), box_frame=np.array(box_frame, dtype=np.int64),
             half=half, X_CS=X_CS,
             radius=np.linalg.norm(X_CS[:, :3, 3], axis=1) + np.linalg.norm(half, axis=1),
-            frame_boxes=frame_boxes, frames_of=frames_of, filters=Filters(keys, defaults, fgm, self.journal))
+            frame_boxes=frame_boxes, frames_of=frames_of, filters=Filters(keys, defaults, fgm, self.journal),
+            free_frames=np.flatnonzero(kind == FREE).tolist(), other_rigid=rigid, other_chains=chains,
+            other_stuck=stuck)
 
     # ---------------------------------------------------------------- summary
     def maximal(self, b) -> bool:

@@ -1,0 +1,85 @@
+"""The dynamic bodies with no box BoxCCD sweeps (a sphere, a mesh, a capsule robot),
+taken back with the world.
+
+When the world goes back to a contact's time, every body has to go back, or the rest
+of the step simulated again from there would move these twice over that time. Their
+state is read only then (after the partial step, when they are needed): a single rigid
+body goes where Bullet's path has it at that time, with its velocity after the step
+less the rest of the step's gravity (its velocity before the step is not read: in free
+flight this ends the rest of the step exactly where the step had ended it); an
+articulated one goes back in joint space (``chain``), with the same base velocity and
+its joint velocities after the step. pybullet's damping, and the joints' accelerations
+over the rest of the step, are applied again. A body whose state pybullet does not give (a soft body, the links of a
+maximal-coordinate body) cannot go back: BoxCCD names it in a warning the first time
+the world goes back without it.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pybullet
+
+from .. import _core
+from ._hooks import raw
+from .chain import read_base_state, read_chain, read_joint_state
+
+__all__ = ["Others", "joint_layout", "put_body"]
+
+
+def joint_layout(chain):
+    """(moving joints, their spans in the flat q, their spans in the flat qdot) of a chain."""
+    moving = [j for j in range(chain.n_links) if chain.joint_type[j] != pybullet.JOINT_FIXED]
+    spherical = [chain.joint_type[j] == pybullet.JOINT_SPHERICAL for j in moving]
+    q_spans = [(int(chain.q_index[j]), int(chain.q_index[j]) + (4 if s else 1)) for j, s in zip(moving, spherical)]
+    qdot_spans = [(int(chain.qdot_index[j]), int(chain.qdot_index[j]) + (3 if s else 1))
+                  for j, s in zip(moving, spherical)]
+    return moving, q_spans, qdot_spans
+
+
+def put_body(cid, body, base, twist, layout, q, qdot):
+    """Set an articulated body's base pose (7,) and velocities (6,), and its moving joints'
+    positions and velocities (flat q and qdot, ``layout`` from ``joint_layout``)."""
+    raw.resetBasePositionAndOrientation(body, base[:3].tolist(), base[3:].tolist(), physicsClientId=cid)
+    raw.resetBaseVelocity(body, twist[:3].tolist(), twist[3:].tolist(), physicsClientId=cid)
+    moving, q_spans, qdot_spans = layout
+    if moving:
+        q, qdot = q.tolist(), qdot.tolist()
+        raw.resetJointStatesMultiDof(body, moving, [q[a:b] for a, b in q_spans], [qdot[a:b] for a, b in qdot_spans],
+                                     physicsClientId=cid)
+
+
+class Others:
+    """The world's dynamic bodies with no tracked box: ``rigid`` (single bodies) and
+    ``chains`` ({body: (chain, joint layout)}); ``stuck``: {body: why it cannot go back}."""
+
+    def __init__(self, cid, rigid, articulated, stuck, warn):
+        self.cid, self.rigid, self.stuck, self._warn = cid, list(rigid), dict(stuck), warn
+        self.chains = {}
+        for b in articulated:
+            try:
+                chain = read_chain(cid, b)
+            except ValueError as e:
+                self.stuck[b] = str(e)
+                continue
+            self.chains[b] = (chain, joint_layout(chain))
+
+    def back(self, dt, tau, gravity):
+        """After a (partial) step of dt: every such body where its path has it at tau."""
+        cid = self.cid
+        if self.rigid:
+            rows = np.array([read_base_state(cid, b) for b in self.rigid])
+            poses = _core.frame_poses(rows, dt, np.arange(len(rows), dtype=np.int64), np.full(len(rows), tau))
+            v = rows[:, 7:10] - (1.0 - tau) * dt * gravity
+            for b, pose, vb, wb in zip(self.rigid, poses.tolist(), v.tolist(), rows[:, 10:13].tolist()):
+                raw.resetBasePositionAndOrientation(b, pose[:3], pose[3:], physicsClientId=cid)
+                raw.resetBaseVelocity(b, vb, wb, physicsClientId=cid)
+        for b, (chain, layout) in self.chains.items():
+            state = read_base_state(cid, b)
+            q, qdot = read_joint_state(cid, b, chain.n_links)
+            motion = chain.motion(state, q, qdot, dt)
+            twist = state[7:13].copy()
+            twist[:3] -= (1.0 - tau) * dt * gravity
+            put_body(cid, b, motion.base_pose(tau), twist, layout, motion.joint_positions(tau), qdot)
+        for b, why in self.stuck.items():
+            self._warn(("stuck", b), f"body {b} is not taken back with the world when a contact takes it back to "
+                                     f"its time ({why}): it runs ahead of the rest by the time gone back")
