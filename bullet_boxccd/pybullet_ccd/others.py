@@ -66,16 +66,22 @@ class Others:
     def back(self, dt, tau, gravity):
         """After a (partial) step of dt: every such body where its path has it at tau."""
         cid = self.cid
-        if self.rigid:
-            rows = np.array([read_base_state(cid, b) for b in self.rigid])
+        # A body standing exactly still after the step stays where it is (placing it would
+        # wake a sleeping one).
+        states = [(b, read_base_state(cid, b)) for b in self.rigid]
+        states = [(b, x) for b, x in states if np.any(x[7:13])]
+        if states:
+            bodies, rows = [b for b, _ in states], np.array([x for _, x in states])
             poses = _core.frame_poses(rows, dt, np.arange(len(rows), dtype=np.int64), np.full(len(rows), tau))
             v = rows[:, 7:10] - (1.0 - tau) * dt * gravity
-            for b, pose, vb, wb in zip(self.rigid, poses.tolist(), v.tolist(), rows[:, 10:13].tolist()):
+            for b, pose, vb, wb in zip(bodies, poses.tolist(), v.tolist(), rows[:, 10:13].tolist()):
                 raw.resetBasePositionAndOrientation(b, pose[:3], pose[3:], physicsClientId=cid)
                 raw.resetBaseVelocity(b, vb, wb, physicsClientId=cid)
         for b, (chain, layout) in self.chains.items():
             state = read_base_state(cid, b)
             q, qdot = read_joint_state(cid, b, chain.n_links)
+            if not (np.any(state[7:13]) or np.any(qdot)):
+                continue
             motion = chain.motion(state, q, qdot, dt)
             twist = state[7:13].copy()
             twist[:3] -= (1.0 - tau) * dt * gravity
