@@ -294,8 +294,9 @@ def test_partial_steps_taken_again_shorter_leave_the_rest_of_the_world_as_pybull
 
 
 def _loose_bodies(cid):
-    """A sphere (spinning), a maximal-coordinate capsule (spinning about its axis) and a free-floating two-link
-    capsule body (its joint still), all flying far from any box: bodies with no box."""
+    """A sphere (spinning), a maximal-coordinate capsule (spinning about its axis), a
+    free-floating two-link capsule body (its joint still) and a mass-0 sphere the user
+    moves by a velocity, all far from any box: bodies with no box."""
     sphere = p.createCollisionShape(p.GEOM_SPHERE, radius=0.1, physicsClientId=cid)
     capsule = p.createCollisionShape(p.GEOM_CAPSULE, radius=0.05, height=0.3, physicsClientId=cid)
     ball = p.createMultiBody(1.0, sphere, basePosition=[5, 5, 5], physicsClientId=cid)
@@ -307,11 +308,12 @@ def _loose_bodies(cid):
                              linkParentIndices=[0], linkJointTypes=[p.JOINT_REVOLUTE], linkJointAxis=[[1, 0, 0]],
                              physicsClientId=cid)
     p.setJointMotorControl2(pair, 0, p.VELOCITY_CONTROL, force=0, physicsClientId=cid)
+    platform = p.createMultiBody(0.0, sphere, basePosition=[-5, -5, 5], physicsClientId=cid)
     for b, v, w in ((ball, [1, 0, 2], [3, 1, 0]), (pill, [0, 1, 2], [0, 0, 2]), (pair, [1, 1, 0], [0, 0, 0])):
         for link in range(-1, p.getNumJoints(b, physicsClientId=cid)):
             p.changeDynamics(b, link, linearDamping=0, angularDamping=0, physicsClientId=cid)
         p.resetBaseVelocity(b, v, w, physicsClientId=cid)
-    return ball, pill, pair
+    return ball, pill, pair, platform
 
 
 def _state_of(cid, b):
@@ -325,7 +327,8 @@ def _state_of(cid, b):
 def test_bodies_with_no_box_go_back_with_the_world(cid):
     """When a contact takes the world back to its time, the bodies BoxCCD sweeps no box of
     go back too: a sphere, a maximal-coordinate capsule and a two-link capsule body in
-    free flight end each step where plain pybullet has them (the rest of the step
+    free flight, and a fixed sphere given a velocity before every step (Bullet moves it
+    by it), end each step where plain pybullet has them (the rest of the step
     simulated again would otherwise move them twice over the time gone back). The cube
     strikes face on, so the rest of each step goes in one piece: pybullet's integration
     over it then ends a free flight exactly where the whole step does, gravity too."""
@@ -337,7 +340,8 @@ def test_bodies_with_no_box_go_back_with_the_world(cid):
         p.changeDynamics(cube, -1, restitution=0.8, physicsClientId=cid)
         throw(cid, cube, speed=200.0, spin=(0.0, 0.0, 0.0))
         loose = _loose_bodies(cid)
-        ccd = run(cid, use, 12)
+        platform = loose[-1]
+        ccd = run(cid, use, 12, lambda k, b=platform: p.resetBaseVelocity(b, [2, 0, 0], [0, 0, 0], physicsClientId=cid))
         ends[use] = [_state_of(cid, b) for b in loose]
     assert ccd.stats.rewinds and ccd.stats.partial_steps
     for plain, swept in zip(ends[False], ends[True]):

@@ -11,7 +11,8 @@ articulated one goes back in joint space (``chain``), with the same base velocit
 its joint velocities after the step. pybullet's damping, and the joints' accelerations
 over the rest of the step, are applied again. A body whose state pybullet does not give (a soft body, the links of a
 maximal-coordinate body) cannot go back: BoxCCD names it in a warning the first time
-the world goes back without it.
+the world goes back without it. A fixed base with no box that the user gave a velocity
+(Bullet moves it by that velocity) goes back on its path too, its velocity kept.
 """
 
 from __future__ import annotations
@@ -49,11 +50,14 @@ def put_body(cid, body, base, twist, layout, q, qdot):
 
 
 class Others:
-    """The world's dynamic bodies with no tracked box: ``rigid`` (single bodies) and
-    ``chains`` ({body: (chain, joint layout)}); ``stuck``: {body: why it cannot go back}."""
+    """The world's bodies with no tracked box: ``rigid`` (free single bodies), ``chains``
+    ({body: (chain, joint layout)}), ``fixed`` (fixed bases with no links: they move only
+    if the user gave them a velocity, which the journal knows); ``stuck``: {body: why it
+    cannot go back}."""
 
-    def __init__(self, cid, rigid, articulated, stuck, warn):
-        self.cid, self.rigid, self.stuck, self._warn = cid, list(rigid), dict(stuck), warn
+    def __init__(self, cid, journal, rigid, articulated, fixed, stuck, warn):
+        self.cid, self.journal, self.rigid, self.fixed = cid, journal, list(rigid), list(fixed)
+        self.stuck, self._warn = dict(stuck), warn
         self.chains = {}
         for b in articulated:
             try:
@@ -68,12 +72,15 @@ class Others:
         cid = self.cid
         # A body standing exactly still after the step stays where it is (placing it would
         # wake a sleeping one).
-        states = [(b, read_base_state(cid, b)) for b in self.rigid]
-        states = [(b, x) for b, x in states if np.any(x[7:13])]
+        given = self.journal.velocity_set
+        states = [(b, read_base_state(cid, b), 1.0) for b in self.rigid]
+        states += [(b, read_base_state(cid, b), 0.0) for b in self.fixed if b in given]
+        states = [(b, x, g) for b, x, g in states if np.any(x[7:13])]
         if states:
-            bodies, rows = [b for b, _ in states], np.array([x for _, x in states])
+            bodies, rows = [b for b, _, _ in states], np.array([x for _, x, _ in states])
+            falls = np.array([g for _, _, g in states])[:, None]
             poses = _core.frame_poses(rows, dt, np.arange(len(rows), dtype=np.int64), np.full(len(rows), tau))
-            v = rows[:, 7:10] - (1.0 - tau) * dt * gravity
+            v = rows[:, 7:10] - falls * ((1.0 - tau) * dt * gravity)
             for b, pose, vb, wb in zip(bodies, poses.tolist(), v.tolist(), rows[:, 10:13].tolist()):
                 raw.resetBasePositionAndOrientation(b, pose[:3], pose[3:], physicsClientId=cid)
                 raw.resetBaseVelocity(b, vb, wb, physicsClientId=cid)

@@ -92,10 +92,11 @@ class Tables:
     frames_of: dict  # body -> its frames
     filters: Filters
     free_frames: list  # the free bodies' frames
-    # Dynamic bodies with no frame here (others.py): single rigid ones, articulated ones, and
-    # {body: why} those whose state pybullet does not give.
+    # Bodies with no frame here (others.py): free single ones, articulated ones, fixed bases
+    # with no links, and {body: why} those whose state pybullet does not give.
     other_rigid: list
     other_chains: list
+    other_fixed: list
     other_stuck: dict
 
     @property
@@ -346,7 +347,7 @@ class World:
         frames_of = {}
         for f, (b, _) in enumerate(keys):
             frames_of.setdefault(b, []).append(f)
-        rigid, chains, stuck = [], [], {}
+        rigid, chains, fixed, stuck = [], [], [], {}
         for b in ids:
             rec = self._bodies[b]
             if rec.moves == "soft":
@@ -359,6 +360,8 @@ class World:
                 chains.append(b)
             elif rec.moves == "rigid":
                 rigid.append(b)
+            elif not rec.frames:
+                fixed.append(b)
         kind = np.array(kinds, dtype=np.int8)
         self.tables = Tables(
             keys=keys, index={k: i for i, k in enumerate(keys)},
@@ -368,7 +371,7 @@ class World:
             radius=np.linalg.norm(X_CS[:, :3, 3], axis=1) + np.linalg.norm(half, axis=1),
             frame_boxes=frame_boxes, frames_of=frames_of, filters=Filters(keys, defaults, fgm, self.journal),
             free_frames=np.flatnonzero(kind == FREE).tolist(), other_rigid=rigid, other_chains=chains,
-            other_stuck=stuck)
+            other_fixed=fixed, other_stuck=stuck)
 
     # ---------------------------------------------------------------- summary
     def maximal(self, b) -> bool:
