@@ -93,3 +93,53 @@ def test_a_box_ending_past_the_middle_of_a_thin_sheet_goes_wrong():
     along, sideways. Shallow, yet wrong: past the middle."""
     c, wrong, s, _ = judge(rows((0.1, 4e-4, 0.1), (0, 0), CUBE, (-0.5, -0.01), y_b=0.1004 - 3e-4))
     assert c is not None and wrong and s == pytest.approx((0.3 + PENETRATION) / 0.49, abs=1e-9)
+
+
+# ------------------------------------------------------------- link boxes
+def judge_link(r):
+    return _core.judge_link_contact(_core.RowBoxPath(r[0]), _core.RowBoxPath(r[1]), 0.05, PENETRATION, CREEP, TOL)
+
+
+def test_a_link_box_through_a_wall_goes_wrong_from_its_first_depth():
+    """A link box's contact (any two box paths: ``judge_link_contact``): the cube through
+    the 2 cm wall is acted on from x = -0.11 + penetration, touching at x = -0.11."""
+    touch, act, c, _, _, initial, pressing, solves = judge_link(rows(WALL, (0, 0), CUBE, (-0.5, 0.5)))
+    assert c is not None and solves >= 1 and not initial and not pressing
+    assert touch == pytest.approx(0.39, abs=1e-6)
+    assert act == pytest.approx(0.39 + PENETRATION, abs=1e-9)
+
+
+@pytest.mark.parametrize("end", [-0.105, -0.06])
+def test_a_link_box_ending_deep_on_its_own_side_is_pybullets(end):
+    """Ending 5 mm or 5 cm into the wall from the side it came from, short of the middle of
+    the pair's reach: a link's contact that ends merely deep is pybullet's (its motors
+    press links into what they touch), unlike a free body's (wrong past 1 mm)."""
+    touch, act, c, *_ = judge_link(rows(WALL, (0, 0), CUBE, (-0.5, end)))
+    assert c is not None and touch == pytest.approx(0.39 / (end + 0.5) * 1.0, rel=1e-5) and np.isnan(act)
+    assert judge(rows(WALL, (0, 0), CUBE, (-0.5, end)))[1]
+
+
+def test_a_link_box_past_the_middle_of_the_wall_goes_wrong():
+    """Ending with its centre 1 mm short of the wall's centre (past the middle of the
+    pair's 0.11 m reach): pybullet would push it out the far side."""
+    touch, act, c, *_ = judge_link(rows(WALL, (0, 0), CUBE, (-0.5, -0.001)))
+    assert c is not None and act == pytest.approx((0.39 + PENETRATION) / 0.499, abs=1e-9)
+
+
+@pytest.mark.parametrize("end, wrong", [(0.2, True), (-0.05, True), (-0.1098, False), (-0.3, False)])
+def test_a_link_box_pressing_as_the_step_begins(end, wrong):
+    """0.1 mm in at the start (pressing, initial), then through the wall, 5 cm past its
+    middle, 0.1 mm deeper, or lifted off: acted on, from the depth at the start plus the
+    creep (0.2 mm), only where it ends where pybullet goes wrong; one ending in contact
+    shallower than that target, or lifted off, is pybullet's."""
+    touch, act, c, _, _, initial, pressing, _ = judge_link(rows(WALL, (0, 0), CUBE, (-0.1099, end)))
+    assert initial and pressing and touch == 0.0
+    if wrong:
+        assert act == pytest.approx((-0.11 + 3e-4 + 0.1099) / (end + 0.1099), abs=1e-9)
+    else:
+        assert np.isnan(act)
+
+
+def test_a_link_box_that_stays_apart_has_no_contact():
+    touch, act, c, *_ = judge_link(rows(WALL, (0, 0), CUBE, (-0.5, -0.2)))
+    assert np.isnan(touch) and np.isnan(act) and c is None

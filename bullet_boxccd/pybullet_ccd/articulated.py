@@ -115,6 +115,7 @@ class Articulated:
         self.watched = [rec for rec in self.bodies.values()
                         if len(tables.half) > len(rec.boxes) or (rec.ancestors is not None and len(rec.boxes) > 1)]
         self.frames = {f for rec in self.bodies.values() for f in rec.frames}
+        self._rigid = len(tables.keys) > len(self.frames)  # whether any box is not on an articulated body
         self.boxes = np.array(sorted(i for rec in self.bodies.values() for _, i in rec.boxes), dtype=np.int64)
 
     # ------------------------------------------------------------ reading
@@ -315,6 +316,8 @@ class Articulated:
         """[(frame, box, path, swept bounds)] of the boxes not of articulated bodies that
         pybullet's broad phase finds near the fast boxes (one query on their common bounds,
         widened by the farthest such a box moves in the step)."""
+        if not self._rigid:
+            return []
         t = self.tables
         bounds = [b for *_, b in fast]
         box = [min(b[d] for b in bounds) for d in range(3)] + [max(b[d] for b in bounds) for d in range(3, 6)]
@@ -342,40 +345,27 @@ class Articulated:
                 return False
         return bool(t.filters.allowed(f, g))
 
-    def _judge(self, a, b, fit_tolerance, tolerances, penetration, stats):
+    @staticmethod
+    def _judge(a, b, fit_tolerance, tolerances, penetration, stats):
         """(touch, act at or None, (point, normal, feature), initial, pressing: touching or
-        all but when the step began) of a pair of paths, or None if they stay apart."""
-        touch, solves, c = _core.paths_contact(a, b, fit_tolerance, tolerances._core)
+        all but when the step began) of a pair of paths, or None if they stay apart.
+
+        A pair touching, or all but, when the step began was in pybullet's contact solve
+        (its contacts reach a little beyond the touch): acted on, from the time it presses
+        in by more than a creep, only if it ends where pybullet resolves it wrongly; a pair
+        that met inside the step, from its touch. A link's contact that ends merely deep is
+        pybullet's: its motors and joints press links into what they touch, and pybullet's
+        solver resolves that as it always does (``_core.judge_link_contact``)."""
+        touch, act, c, point, normal, initial, pressing, solves = _core.judge_link_contact(
+            a, b, fit_tolerance, penetration, CREEP, tolerances._core)
         stats.solver_rows += solves
         stats.candidate_pairs += 1
         stats.outcomes[Outcome.SEPARATED if c is None else c.outcome] += 1
         if math.isnan(touch):
             return None
-        d0 = float(_core.paths_depth(a, b, 0.0))
-        initial = d0 >= 0.0
-        thin = min(a.half_extents.min(), b.half_extents.min())
-        # A pair touching, or all but, when the step began was in pybullet's contact solve
-        # (its contacts reach a little beyond the touch): acted on, from the time it presses
-        # in by more than a creep, only if it ends where pybullet resolves it wrongly; a
-        # pair that met inside the step, from its touch. A link's contact that ends merely
-        # deep is pybullet's: its motors and joints press links into what they touch, and
-        # pybullet's solver resolves that as it always does.
-        creep = CREEP * thin
-        pressing = d0 > -creep
-        target = max(d0, 0.0) + max(penetration, creep) if pressing else penetration
-        if pressing and float(_core.paths_depth(a, b, 1.0)) < target:
-            act = math.nan  # a pressing pair that ends shallower than the creep: pybullet's
-        else:
-            act = float(_core.paths_first_depth(a, b, touch, target))
-        if c.feature is not None:
-            contact = (c.point, c.normal, c.feature)
-        else:  # no BMS plane found (a touch at the start, or on a piece too fast to fit): no feature to name
-            _, n = _core.paths_separation(a, b, touch)
-            Xa, Xb = a.pose(touch), b.pose(touch)
-            contact = (0.5 * (Xa[:3, 3] + Xb[:3, 3]), n, None)
-        if math.isnan(act) or not _goes_wrong(a, b, act):
-            act = None
-        return touch, act, contact, initial, pressing
+        # No BMS plane found (a touch at the start, or on a piece too fast to fit): no feature to name.
+        contact = (c.point, c.normal, c.feature) if c.feature is not None else (point, normal, None)
+        return touch, None if math.isnan(act) else act, contact, initial, pressing
 
     # ------------------------------------------------------------ pushing
     def _push(self, rec, f, g, tau, pair, state, dt):
@@ -425,24 +415,6 @@ class Articulated:
         for rec in self.bodies.values():
             if rec.motion is not None:
                 self.stop(rec, tau, state)
-
-
-def _goes_wrong(a, b, s_act):
-    """Whether pybullet would resolve the pair wrongly from where the step leaves it, once
-    it overlapped by the target at s_act. With n the contact normal (from A towards B:
-    the axis of least overlap when it first went that deep): overlapping at the end,
-    B's centre gone past the middle of the pair's reach along n, or the least overlap
-    pointing back out of the far side; apart at the end, B's centre on A's far side
-    along n (it went through). A pair that parted on the side it came from, or sideways
-    (a strike, a link sweeping along a face), is pybullet's to resolve."""
-    depth1, axis1 = _core.paths_separation(a, b, 1.0)
-    _, n = _core.paths_separation(a, b, s_act)
-    Xa, Xb = a.pose(1.0), b.pose(1.0)
-    along = float(np.dot(Xb[:3, 3] - Xa[:3, 3], n))
-    if depth1 <= 0.0:
-        return along < 0.0
-    reach = np.abs(Xa[:3, :3].T @ n) @ a.half_extents + np.abs(Xb[:3, :3].T @ n) @ b.half_extents
-    return float(np.dot(axis1, n)) < 0.0 or along < 0.5 * reach
 
 
 def _grow(lo, hi, aabb, by):

@@ -188,6 +188,26 @@ nb::tuple py_judge_contact(const In<kPathBoxSize> &row_a, const In<kPathBoxSize>
     return nb::make_tuple(hit_result(j.contact), j.wrong, j.depth_time, n);
 }
 
+// (touch, act, contact or None, point (3,), normal (3,), initial, pressing, solves):
+// judge_link_contact of two box paths (touch and act NaN where there is none; point and
+// normal are the contact's where it has no facet).
+nb::tuple py_judge_link_contact(const BoxPath &a, const BoxPath &b, double fit_tolerance, double penetration,
+                                double creep, const Tolerances &tol) {
+    check_fit_tolerance(fit_tolerance);
+    validate(tol);
+    LinkJudgement j;
+    {
+        nb::gil_scoped_release release;
+        j = judge_link_contact(a, b, fit_tolerance, penetration, creep, tol);
+    }
+    double *point, *normal;
+    auto p = new_array<3>({3}, point);
+    auto n = new_array<3>({3}, normal);
+    std::copy(j.point.begin(), j.point.end(), point);
+    std::copy(j.normal.begin(), j.normal.end(), normal);
+    return nb::make_tuple(j.touch, j.act, hit_result(j.contact), p, n, j.initial, j.pressing, j.solves);
+}
+
 double paths_depth(const BoxPath &a, const BoxPath &b, double tau) {
     check_tau(tau);
     return path_depth(a, b, tau);
@@ -237,6 +257,8 @@ void bind_paths(nb::module_ &m) {
     m.def("judge_contact", &py_judge_contact, nb::arg("row_a"), nb::arg("row_b"), nb::arg("lo"), nb::arg("s_touch"),
           nb::arg("judge"), nb::arg("with_time"), nb::arg("penetration"), nb::arg("depth_tolerance"), nb::arg("creep"),
           nb::arg("tolerances"));
+    m.def("judge_link_contact", &py_judge_link_contact, nb::arg("a"), nb::arg("b"), nb::arg("fit_tolerance"),
+          nb::arg("penetration"), nb::arg("creep"), nb::arg("tolerances"));
     m.def("paths_depth", &paths_depth, nb::arg("a"), nb::arg("b"), nb::arg("tau"));
     m.def("paths_relative_move", &relative_move, nb::arg("a"), nb::arg("b"),
           "How far the smaller box's corners move in the other's frame from the step's start to its end.");

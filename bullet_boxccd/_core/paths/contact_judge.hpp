@@ -38,4 +38,26 @@ Judgement judge_contact(const double *row_a, const double *row_b, double lo, dou
                         bool with_time, double penetration, double depth_tolerance, double creep,
                         const Tolerances &tol);
 
+// The judgement of a link box's contact (pybullet_ccd/articulated.py): any two box paths
+// over the whole step. A link's contact that ends merely deep is pybullet's (motors press
+// links into what they touch); it goes wrong only where pybullet pushes it out the far
+// side or never sees it.
+struct LinkJudgement {
+    double touch = std::numeric_limits<double>::quiet_NaN();  // the first touch; NaN: the boxes stay apart
+    Hit contact;  // its geometry (from the first touch's solve; no facet at a touch at the start)
+    long solves = 0;
+    // Touching, or all but (within creep times the thinner box's smallest half extent),
+    // when the step began: pybullet's solver saw the pair.
+    bool initial = false, pressing = false;
+    // When the pair first overlaps by the target (the penetration; a pressing pair: its
+    // depth at the start plus the larger of the penetration and the creep), if pybullet
+    // would resolve it wrongly from the step's end; NaN otherwise.
+    double act = std::numeric_limits<double>::quiet_NaN();
+    // Where there is no facet: the centres' midpoint at the touch and the least-overlap axis there.
+    Vec3 point{}, normal{};
+};
+
+LinkJudgement judge_link_contact(const BoxPath &a, const BoxPath &b, double fit_tolerance, double penetration,
+                                 double creep, const Tolerances &tol);
+
 }  // namespace boxccd
