@@ -254,7 +254,7 @@ class BoxCCD:
             if not self._chains.bodies:
                 # Free boxes only, and nothing the user moved: the sweep is all there is to
                 # the step unless it finds a contact.
-                st.fresh = set()
+                st.begin_kinematic((), ())
                 sw = sweep(cid, self.world.tables, st, self._dt, self.fit_tolerance, self.tolerances,
                            self.penetration, self.stats, time.perf_counter(), fast, self._at_clamp)
                 if sw is None:
@@ -316,7 +316,8 @@ class BoxCCD:
         try:
             k = 0
             while True:
-                self._state.begin_kinematic(moved_static, with_velocity)
+                if sw is None:  # (a sweep taken already began the step's state)
+                    self._state.begin_kinematic(moved_static, with_velocity)
                 if not stepped:
                     self._state.begin(self._known)
                     raw.stepSimulation(physicsClientId=self.cid)
