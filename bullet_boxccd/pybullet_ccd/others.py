@@ -1,18 +1,22 @@
-"""The dynamic bodies with no box BoxCCD sweeps (a sphere, a mesh, a capsule robot),
-taken back with the world.
+"""The bodies with no box BoxCCD sweeps (a sphere, a mesh, a capsule robot), taken back
+with the world.
 
-When the world goes back to a contact's time, every body has to go back, or the rest
+When a contact takes the world back to its time, every body has to go back, or the rest
 of the step simulated again from there would move these twice over that time. Their
-state is read only then (after the partial step, when they are needed): a single rigid
-body goes where Bullet's path has it at that time, with its velocity after the step
-less the rest of the step's gravity (its velocity before the step is not read: in free
-flight this ends the rest of the step exactly where the step had ended it); an
-articulated one goes back in joint space (``chain``), with the same base velocity and
-its joint velocities after the step. pybullet's damping, and the joints' accelerations
-over the rest of the step, are applied again. A body whose state pybullet does not give (a soft body, the links of a
-maximal-coordinate body) cannot go back: BoxCCD names it in a warning the first time
-the world goes back without it. A fixed base with no box that the user gave a velocity
-(Bullet moves it by that velocity) goes back on its path too, its velocity kept.
+state is read only then, after the step being gone back into:
+
+* a free single body goes where Bullet's path has it at that time, with its velocity
+  after the step less the rest of the step's gravity (its velocity before the step is
+  not read; in free flight this ends the rest of the step exactly where the step ended);
+* an articulated one goes back in joint space (``chain``), its base's velocity so, its
+  joint velocities those after the step;
+* a fixed base the user gave a velocity (Bullet moves it by it) goes back on its path,
+  its velocity kept.
+
+pybullet's damping, and the joints' accelerations over the rest of the step, are applied
+again. A body whose state pybullet does not give (a soft body, the links of a
+maximal-coordinate body) cannot go back: a warning names it the first time the world
+goes back without it.
 """
 
 from __future__ import annotations
@@ -50,26 +54,31 @@ def put_body(cid, body, base, twist, layout, q, qdot):
 
 
 class Others:
-    """The world's bodies with no tracked box: ``rigid`` (free single bodies), ``chains``
-    ({body: (chain, joint layout)}), ``fixed`` (fixed bases with no links: they move only
-    if the user gave them a velocity, which the journal knows); ``stuck``: {body: why it
-    cannot go back}."""
+    """The world's bodies with no tracked box: ``rigid`` (free single bodies),
+    ``articulated`` (their links read the first time the world goes back), ``fixed``
+    (fixed bases with no links: they move only if the user gave them a velocity, which the
+    journal knows); ``stuck``: {body: why it cannot go back}."""
 
     def __init__(self, cid, journal, rigid, articulated, fixed, stuck, warn):
         self.cid, self.journal, self.rigid, self.fixed = cid, journal, list(rigid), list(fixed)
         self.stuck, self._warn = dict(stuck), warn
-        self.chains = {}
-        for b in articulated:
+        self._unread, self.chains = list(articulated), {}  # chains: {body: (chain, joint layout)}
+
+    def _read_chains(self):
+        for b in self._unread:
             try:
-                chain = read_chain(cid, b)
+                chain = read_chain(self.cid, b)
             except ValueError as e:
                 self.stuck[b] = str(e)
                 continue
             self.chains[b] = (chain, joint_layout(chain))
+        self._unread = []
 
     def back(self, dt, tau, gravity):
         """After a (partial) step of dt: every such body where its path has it at tau."""
         cid = self.cid
+        if self._unread:
+            self._read_chains()
         # A body standing exactly still after the step stays where it is (placing it would
         # wake a sleeping one).
         given = self.journal.velocity_set
