@@ -295,25 +295,31 @@ def test_partial_steps_taken_again_shorter_leave_the_rest_of_the_world_as_pybull
 
 def _loose_bodies(cid):
     """A sphere (spinning), a maximal-coordinate capsule (spinning about its axis), a
-    free-floating two-link capsule body (its joint still) and a mass-0 sphere the user
-    moves by a velocity, all far from any box: bodies with no box."""
+    free-floating two-link capsule body (its joint still), a two-link capsule arm on a
+    fixed base swinging under gravity, and a mass-0 sphere the user moves by a velocity,
+    all far from any box: bodies with no box."""
     sphere = p.createCollisionShape(p.GEOM_SPHERE, radius=0.1, physicsClientId=cid)
     capsule = p.createCollisionShape(p.GEOM_CAPSULE, radius=0.05, height=0.3, physicsClientId=cid)
     ball = p.createMultiBody(1.0, sphere, basePosition=[5, 5, 5], physicsClientId=cid)
     pill = p.createMultiBody(1.0, capsule, basePosition=[5, -5, 5], useMaximalCoordinates=True, physicsClientId=cid)
-    pair = p.createMultiBody(1.0, capsule, basePosition=[-5, 5, 5], linkMasses=[1.0],
-                             linkCollisionShapeIndices=[capsule], linkVisualShapeIndices=[-1],
-                             linkPositions=[[0, 0, 0.4]], linkOrientations=[[0, 0, 0, 1]],
-                             linkInertialFramePositions=[[0, 0, 0]], linkInertialFrameOrientations=[[0, 0, 0, 1]],
-                             linkParentIndices=[0], linkJointTypes=[p.JOINT_REVOLUTE], linkJointAxis=[[1, 0, 0]],
-                             physicsClientId=cid)
-    p.setJointMotorControl2(pair, 0, p.VELOCITY_CONTROL, force=0, physicsClientId=cid)
+
+    def two_link(mass, pos):
+        b = p.createMultiBody(mass, capsule, basePosition=pos, linkMasses=[1.0], linkCollisionShapeIndices=[capsule],
+                              linkVisualShapeIndices=[-1], linkPositions=[[0, 0, 0.4]], linkOrientations=[[0, 0, 0, 1]],
+                              linkInertialFramePositions=[[0, 0, 0]], linkInertialFrameOrientations=[[0, 0, 0, 1]],
+                              linkParentIndices=[0], linkJointTypes=[p.JOINT_REVOLUTE], linkJointAxis=[[1, 0, 0]],
+                              physicsClientId=cid)
+        p.setJointMotorControl2(b, 0, p.VELOCITY_CONTROL, force=0, physicsClientId=cid)
+        return b
+
+    pair, arm = two_link(1.0, [-5, 5, 5]), two_link(0.0, [-5, 0, 5])
     platform = p.createMultiBody(0.0, sphere, basePosition=[-5, -5, 5], physicsClientId=cid)
     for b, v, w in ((ball, [1, 0, 2], [3, 1, 0]), (pill, [0, 1, 2], [0, 0, 2]), (pair, [1, 1, 0], [0, 0, 0])):
         for link in range(-1, p.getNumJoints(b, physicsClientId=cid)):
             p.changeDynamics(b, link, linearDamping=0, angularDamping=0, physicsClientId=cid)
         p.resetBaseVelocity(b, v, w, physicsClientId=cid)
-    return ball, pill, pair, platform
+    p.resetJointState(arm, 0, 0.3, 1.0, physicsClientId=cid)
+    return ball, pill, pair, arm, platform
 
 
 def _state_of(cid, b):
@@ -328,11 +334,12 @@ def test_bodies_with_no_box_go_back_with_the_world(cid):
     """When a contact takes the world back to its time, the bodies BoxCCD sweeps no box of
     go back too: a sphere, a maximal-coordinate capsule and a two-link capsule body in
     free flight, and a fixed sphere given a velocity before every step (Bullet moves it
-    by it), end each step where plain pybullet has them (the rest of the step
+    by it), end each step where plain pybullet has them, and a fixed-base arm's base stays
+    put (the rest of the step
     simulated again would otherwise move them twice over the time gone back). The cube
     strikes face on, so the rest of each step goes in one piece: pybullet's integration
     over it then ends a free flight exactly where the whole step does, gravity too."""
-    ends = {}
+    ends, arm_base = {}, {}
     for use in (False, True):
         reset(cid, gravity=-9.81)
         box(cid, [0.005, 1, 1], [0, 0, 0], mass=0.0)
@@ -342,10 +349,14 @@ def test_bodies_with_no_box_go_back_with_the_world(cid):
         loose = _loose_bodies(cid)
         platform = loose[-1]
         ccd = run(cid, use, 12, lambda k, b=platform: p.resetBaseVelocity(b, [2, 0, 0], [0, 0, 0], physicsClientId=cid))
-        ends[use] = [_state_of(cid, b) for b in loose]
+        ends[use] = [_state_of(cid, b) for k, b in enumerate(loose) if k != 3]
+        arm_base[use] = _state_of(cid, loose[3])[:7]
     assert ccd.stats.rewinds and ccd.stats.partial_steps
     for plain, swept in zip(ends[False], ends[True]):
         np.testing.assert_allclose(swept, plain, rtol=0, atol=1e-9)
+    # The swinging arm's joint accelerates over the step (its joint velocity goes back as it
+    # is after the step); its fixed base stays exactly where it is.
+    np.testing.assert_array_equal(arm_base[True], arm_base[False])
 
 
 def test_a_body_that_cannot_go_back_is_named_when_the_world_goes_back(cid):

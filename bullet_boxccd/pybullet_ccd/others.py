@@ -8,8 +8,8 @@ state is read only then, after the step being gone back into:
 * a free single body goes where Bullet's path has it at that time, with its velocity
   after the step less the rest of the step's gravity (its velocity before the step is
   not read; in free flight this ends the rest of the step exactly where the step ended);
-* an articulated one goes back in joint space (``chain``), its base's velocity so, its
-  joint velocities those after the step;
+* an articulated one goes back in joint space (``chain``), its base's velocity so (a
+  fixed base's kept), its joint velocities those after the step;
 * a fixed base the user gave a velocity (Bullet moves it by it) goes back on its path,
   its velocity kept.
 
@@ -62,7 +62,7 @@ class Others:
     def __init__(self, cid, journal, rigid, articulated, fixed, stuck, warn):
         self.cid, self.journal, self.rigid, self.fixed = cid, journal, list(rigid), list(fixed)
         self.stuck, self._warn = dict(stuck), warn
-        self._unread, self.chains = list(articulated), {}  # chains: {body: (chain, joint layout)}
+        self._unread, self.chains = list(articulated), {}  # chains: {body: (chain, joint layout, falls)}
 
     def _read_chains(self):
         for b in self._unread:
@@ -71,7 +71,8 @@ class Others:
             except ValueError as e:
                 self.stuck[b] = str(e)
                 continue
-            self.chains[b] = (chain, joint_layout(chain))
+            falls = raw.getDynamicsInfo(b, -1, physicsClientId=self.cid)[0] > 0.0  # a fixed base does not
+            self.chains[b] = (chain, joint_layout(chain), falls)
         self._unread = []
 
     def back(self, dt, tau, gravity):
@@ -93,14 +94,15 @@ class Others:
             for b, pose, vb, wb in zip(bodies, poses.tolist(), v.tolist(), rows[:, 10:13].tolist()):
                 raw.resetBasePositionAndOrientation(b, pose[:3], pose[3:], physicsClientId=cid)
                 raw.resetBaseVelocity(b, vb, wb, physicsClientId=cid)
-        for b, (chain, layout) in self.chains.items():
+        for b, (chain, layout, falls) in self.chains.items():
             state = read_base_state(cid, b)
             q, qdot = read_joint_state(cid, b, chain.n_links)
             if not (np.any(state[7:13]) or np.any(qdot)):
                 continue
             motion = chain.motion(state, q, qdot, dt)
             twist = state[7:13].copy()
-            twist[:3] -= (1.0 - tau) * dt * gravity
+            if falls:
+                twist[:3] -= (1.0 - tau) * dt * gravity
             put_body(cid, b, motion.base_pose(tau), twist, layout, motion.joint_positions(tau), qdot)
         for b, why in self.stuck.items():
             self._warn(("stuck", b), f"body {b} is not taken back with the world when a contact takes it back to "
