@@ -332,13 +332,14 @@ def _state_of(cid, b):
 
 def test_bodies_with_no_box_go_back_with_the_world(cid):
     """When a contact takes the world back to its time, the bodies BoxCCD sweeps no box of
-    go back too: a sphere, a maximal-coordinate capsule and a two-link capsule body in
-    free flight, and a fixed sphere given a velocity before every step (Bullet moves it
-    by it), end each step where plain pybullet has them, and a fixed-base arm's base stays
-    put (the rest of the step
-    simulated again would otherwise move them twice over the time gone back). The cube
-    strikes face on, so the rest of each step goes in one piece: pybullet's integration
-    over it then ends a free flight exactly where the whole step does, gravity too."""
+    go back too (the rest of the step simulated again would otherwise move them twice over
+    the time gone back): a sphere, a maximal-coordinate capsule and a two-link capsule body
+    in free flight, and a fixed sphere given a velocity and a spin before every step
+    (Bullet moves it by them, turning its velocity as it goes; so for a fixed box beside
+    it), end each step where plain pybullet has them, and a fixed-base arm's base stays put.
+    The cube strikes face on, so the rest of each step goes in one piece: pybullet's
+    integration over it then ends a free flight exactly where the whole step does, gravity
+    too."""
     ends, arm_base = {}, {}
     for use in (False, True):
         reset(cid, gravity=-9.81)
@@ -346,10 +347,16 @@ def test_bodies_with_no_box_go_back_with_the_world(cid):
         cube = box(cid, [0.05] * 3, [-0.5, 0.0, 0.0])
         p.changeDynamics(cube, -1, restitution=0.8, physicsClientId=cid)
         throw(cid, cube, speed=200.0, spin=(0.0, 0.0, 0.0))
+        carrier = box(cid, [0.1, 0.1, 0.1], [5.0, 0.0, 5.0], mass=0.0)
         loose = _loose_bodies(cid)
-        platform = loose[-1]
-        ccd = run(cid, use, 12, lambda k, b=platform: p.resetBaseVelocity(b, [2, 0, 0], [0, 0, 0], physicsClientId=cid))
-        ends[use] = [_state_of(cid, b) for k, b in enumerate(loose) if k != 3]
+        moved = (loose[-1], carrier)
+
+        def drive(k, moved=moved):
+            for b in moved:
+                p.resetBaseVelocity(b, [2, 1, 0], [0.5, 0, 3], physicsClientId=cid)
+
+        ccd = run(cid, use, 12, drive)
+        ends[use] = [_state_of(cid, b) for k, b in enumerate(loose) if k != 3] + [_state_of(cid, carrier)]
         arm_base[use] = _state_of(cid, loose[3])[:7]
     assert ccd.stats.rewinds and ccd.stats.partial_steps
     for plain, swept in zip(ends[False], ends[True]):

@@ -80,6 +80,27 @@ def test_step_path_reproduces_bullets_integration(cid):
         np.testing.assert_allclose(quat_to_matrix(X0[3:]), quat_to_matrix(q0), atol=1e-9)
 
 
+@pytest.mark.parametrize("h", [DT, DT / 7, 0.05])
+def test_a_fixed_base_moved_by_its_velocity_turns_it_as_bullet_does(cid, h):
+    """A mass-0 base given a velocity and a spin: Bullet moves it by the velocity it ends
+    the step with, which it turned with the spin on the way; ``fixed_base_velocity`` gives
+    back the velocity it started from (what a kinematic body is given at a go-back)."""
+    reset(cid)
+    b = box(cid, [0.1, 0.2, 0.3], [0, 0, 1], mass=0.0)
+    p.setTimeStep(h, physicsClientId=cid)
+    rng = np.random.default_rng(0)
+    for _ in range(5):
+        v, w = rng.uniform(-20, 20, 3), rng.uniform(-30, 30, 3)
+        p.resetBaseVelocity(b, v.tolist(), w.tolist(), physicsClientId=cid)
+        pos0 = np.array(p.getBasePositionAndOrientation(b, physicsClientId=cid)[0])
+        p.stepSimulation(physicsClientId=cid)
+        pos1 = np.array(p.getBasePositionAndOrientation(b, physicsClientId=cid)[0])
+        v1, w1 = map(np.array, p.getBaseVelocity(b, physicsClientId=cid))
+        np.testing.assert_allclose(pos1 - pos0, h * v1, atol=1e-12)
+        np.testing.assert_allclose(w1, w, atol=1e-12)
+        np.testing.assert_allclose(_core.fixed_base_velocity(v1[None], w1[None], h)[0], v, atol=1e-9)
+
+
 # ------------------------------------------------------------- 1. thin walls
 def thin_wall_run(cid, use, speed, thickness, phase, spin, orn, cube_kw=None, register=None, ccd_kw=None):
     """A cube at ``speed`` against a static wall of ``thickness`` in the plane x = 0 (2 m

@@ -11,7 +11,7 @@ state is read only then, after the step being gone back into:
 * an articulated one goes back in joint space (``chain``), its base's velocity so (a
   fixed base's kept), its joint velocities those after the step;
 * a fixed base the user gave a velocity (Bullet moves it by it) goes back on its path,
-  its velocity kept.
+  with the velocity that the rest of the step turns into the one it ended with.
 
 pybullet's damping, and the joints' accelerations over the rest of the step, are applied
 again. A body whose state pybullet does not give (a soft body, the links of a
@@ -91,6 +91,9 @@ class Others:
             falls = np.array([g for _, _, g in states])[:, None]
             poses = _core.frame_poses(rows, dt, np.arange(len(rows), dtype=np.int64), np.full(len(rows), tau))
             v = rows[:, 7:10] - falls * ((1.0 - tau) * dt * gravity)
+            fixed = falls[:, 0] == 0.0
+            if fixed.any():  # Bullet turns a fixed base's velocity with its spin as it goes
+                v[fixed] = _core.fixed_base_velocity(rows[fixed, 7:10], rows[fixed, 10:13], (1.0 - tau) * dt)
             for b, pose, vb, wb in zip(bodies, poses.tolist(), v.tolist(), rows[:, 10:13].tolist()):
                 raw.resetBasePositionAndOrientation(b, pose[:3], pose[3:], physicsClientId=cid)
                 raw.resetBaseVelocity(b, vb, wb, physicsClientId=cid)

@@ -59,6 +59,15 @@ Out<double, -1, 7> py_frame_poses(const States &state, double dt, const Index<-1
     return Out<double, -1, 7>(out, {n, 7}, owner);
 }
 
+// (n, 3): fixed_base_velocity_before of each row of v_end and w (n, 3) over h.
+Out<double, -1, 3> py_fixed_base_velocity(const In<-1, 3> &v_end, const In<-1, 3> &w, double h) {
+    const size_t n = v_end.shape(0);
+    if (w.shape(0) != n) throw nb::value_error("v_end and w differ in length");
+    auto [out, owner] = new_buffer<double>(3 * n);
+    for (size_t i = 0; i < n; ++i) fixed_base_velocity_before(v_end.data() + 3 * i, w.data() + 3 * i, h, out + 3 * i);
+    return Out<double, -1, 3>(out, {n, 3}, owner);
+}
+
 Out<int64_t, -1, 2> py_candidate_pairs(const In<-1, 6> &bounds, int64_t n_fast, const Index<-1> &frame,
                                        const Index<-1> &frame_body, const Bytes &self_collides,
                                        const Index<-1> &group, const Index<-1> &mask, int filter_mode) {
@@ -271,6 +280,9 @@ void bind_world(nb::module_ &m) {
     m.def("path_rows_between", &py_path_rows_between, nb::arg("poses0"), nb::arg("poses1"), nb::arg("boxes"),
           nb::arg("box_frame"), nb::arg("X_CS"), nb::arg("half"));
     m.def("frame_poses", &py_frame_poses, nb::arg("state"), nb::arg("dt"), nb::arg("frames"), nb::arg("taus"));
+    m.def("fixed_base_velocity", &py_fixed_base_velocity, nb::arg("v_end"), nb::arg("w"), nb::arg("h"),
+          "The linear velocities that fixed bases moved by their velocities start a step of h with to end it at "
+          "v_end (Bullet turns them with the spin w as it goes).");
     m.def("candidate_pairs", &py_candidate_pairs, nb::arg("bounds"), nb::arg("n_fast"), nb::arg("frame"),
           nb::arg("frame_body"), nb::arg("self_collides"), nb::arg("group"), nb::arg("mask"), nb::arg("filter_mode"));
     m.def("first_touches", &py_first_touches, nb::arg("rows"), nb::arg("pairs"), nb::arg("fit_tolerance"),

@@ -214,6 +214,15 @@ void window_row(const double *row, double lo, double hi, double *out) {
     out[pr::kAngle] = (hi - lo) * row[pr::kAngle];
 }
 
+void fixed_base_velocity_before(const double *v_end, const double *w, double h, double *v) {
+    // (I + S)^-1 with S = h [w x]: (v_end - S v_end + h^2 (w . v_end) w) / (1 + h^2 |w|^2).
+    const double wv[3] = {w[1] * v_end[2] - w[2] * v_end[1], w[2] * v_end[0] - w[0] * v_end[2],
+                          w[0] * v_end[1] - w[1] * v_end[0]};
+    const double along = w[0] * v_end[0] + w[1] * v_end[1] + w[2] * v_end[2];
+    const double scale = 1.0 / (1.0 + h * h * (w[0] * w[0] + w[1] * w[1] + w[2] * w[2]));
+    for (int i = 0; i < 3; ++i) v[i] = (v_end[i] - h * wv[i] + h * h * along * w[i]) * scale;
+}
+
 void frame_pose(const double *state, double dt, double tau, double *pose) {
     const double *q1 = state + fs::kOrientation, *v = state + fs::kVelocity, *w = state + fs::kAngularVelocity;
     const double speed = norm3(w);

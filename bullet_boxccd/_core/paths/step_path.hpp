@@ -67,6 +67,12 @@ void window_row(const double *row, double lo, double hi, double *out);
 // The frame's pose at tau: position (3) and unit quaternion x y z w (4).
 void frame_pose(const double *state, double dt, double tau, double *pose);
 
+// A fixed base moved by its velocity (a kinematic body): Bullet turns its linear
+// velocity with its spin w as it integrates a step of h, v_end = v + h w x v, and moves
+// it by v_end h (measured on pybullet 3.2.7 to 1e-16). The linear velocity v that ends
+// a step of h at v_end: (I + h [w x])^-1 v_end.
+void fixed_base_velocity_before(const double *v_end, const double *w, double h, double *v);
+
 // Separating-axis overlap depth of two boxes at poses X_WA, X_WB (4x4 row-major)
 // with half extents ha, hb: > 0 overlapping by that much, <= 0 apart (the gap,
 // negated, along the best of the 15 axes). The one overlap test of every path kind.

@@ -205,9 +205,11 @@ void Sweeper::velocities_at(double dt, double tau, const int64_t *frames, const 
         still[k] = rest;
         double out[6];
         for (int i = 0; i < 6; ++i) out[i] = after[i];
-        if (mode[k] == 1 && before) {
+        if (mode[k] == 0) {
+            fixed_base_velocity_before(after, after + 3, (1.0 - tau) * dt, out);
+        } else if (mode[k] == 1 && before) {
             for (int i = 0; i < 6; ++i) out[i] = before[i] + tau * (after[i] - before[i]);
-        } else if (mode[k] != 0) {
+        } else {
             for (int i = 0; i < 3; ++i) out[i] -= gravity[i] * (1.0 - tau) * dt;
         }
         std::copy(out, out + 3, v + 3 * k);

@@ -114,7 +114,8 @@ class Sweeper {
 
     // The velocities the n frames (checked) leave step fraction tau of a step of dt
     // with when the world is taken back there: mode[k] 0 keeps the frame's velocities
-    // after the step (a kinematic frame); 1 takes them between twist0 (n_frames x 6:
+    // after the step, its linear one turned back by its spin over the rest of the step
+    // (a kinematic frame: fixed_base_velocity_before); 1 takes them between twist0 (n_frames x 6:
     // the velocities the step began with) and those after it, in proportion; 2 keeps
     // those after it less the rest of the step's gravity (a body struck as the step
     // began; mode 1 is taken as 2 when twist0 is null). still[k]: the frame was at
