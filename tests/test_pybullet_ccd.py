@@ -83,7 +83,7 @@ def test_step_path_reproduces_bullets_integration(cid):
 @pytest.mark.parametrize("h", [DT, DT / 7, 0.05])
 def test_a_fixed_base_moved_by_its_velocity_turns_it_as_bullet_does(cid, h):
     """A mass-0 base given a velocity and a spin: Bullet moves it by the velocity it ends
-    the step with, which it turned with the spin on the way; ``fixed_base_velocity`` gives
+    the step with, which it turned with the spin on the way; ``twists_at`` (mode 0) gives
     back the velocity it started from (what a kinematic body is given at a go-back)."""
     reset(cid)
     b = box(cid, [0.1, 0.2, 0.3], [0, 0, 1], mass=0.0)
@@ -98,7 +98,8 @@ def test_a_fixed_base_moved_by_its_velocity_turns_it_as_bullet_does(cid, h):
         v1, w1 = map(np.array, p.getBaseVelocity(b, physicsClientId=cid))
         np.testing.assert_allclose(pos1 - pos0, h * v1, atol=1e-12)
         np.testing.assert_allclose(w1, w, atol=1e-12)
-        np.testing.assert_allclose(_core.fixed_base_velocity(v1[None], w1[None], h)[0], v, atol=1e-9)
+        np.testing.assert_allclose(_core.twists_at(np.array([[*v1, *w1]]), [0], h, 0.0, np.zeros(3))[0, :3], v,
+                                   atol=1e-9)
 
 
 # ------------------------------------------------------------- 1. thin walls

@@ -65,7 +65,6 @@ class _Body:
     link_of_frame: np.ndarray = None  # (len(frames),) int64: each frame's link
     frame_index: np.ndarray = None  # (len(frames),) int64: ``frames``
     layout: tuple = None  # its joints that are not fixed, and their spans in q and qdot (joint_layout)
-    moving_joints: list = None
     start: tuple = None  # (base velocity (6,), qdot) when the step began, if known
     box_links: np.ndarray = None  # (len(boxes),) each box's link (-1: base), its pose on the link's frame
     box_X: np.ndarray = None  # (len(boxes), 4, 4), half extents (len(boxes), 3) and sweep reach (len(boxes),)
@@ -110,7 +109,6 @@ class Articulated:
             rec.base_idle = per_link.pop(-1, None)
             rec.link_idle = (list(per_link), *zip(*per_link.values())) if per_link else None
             rec.layout = joint_layout(rec.chain)
-            rec.moving_joints = rec.layout[0]
         # The bodies a box of which can meet another tracked box: one on another body, or its own (self-collision).
         self.watched = [rec for rec in self.bodies.values()
                         if len(tables.half) > len(rec.boxes) or (rec.ancestors is not None and len(rec.boxes) > 1)]
@@ -170,7 +168,8 @@ class Articulated:
         for rec in self.bodies.values():
             pos, orn = raw.getBasePositionAndOrientation(rec.body, physicsClientId=cid)
             v, w = raw.getBaseVelocity(rec.body, physicsClientId=cid)
-            js = raw.getJointStatesMultiDof(rec.body, rec.moving_joints, physicsClientId=cid) if rec.moving_joints \
+            moving = rec.layout[0]
+            js = raw.getJointStatesMultiDof(rec.body, moving, physicsClientId=cid) if moving \
                 else ()
             rec.start = (rec.base_state[7:13], rec.qdot) if known and rec.base_state is not None else None
             rec.base_state = np.array([*pos, *orn, *v, *w], dtype=np.float64)

@@ -82,30 +82,25 @@ class Others:
             self._read_chains()
         # A body standing exactly still after the step stays where it is (placing it would
         # wake a sleeping one).
-        given = self.journal.velocity_set
-        states = [(b, read_base_state(cid, b), 1.0) for b in self.rigid]
-        states += [(b, read_base_state(cid, b), 0.0) for b in self.fixed if b in given]
-        states = [(b, x, g) for b, x, g in states if np.any(x[7:13])]
+        given = self.journal.velocity_set  # (mode 2: a free body; 0: a fixed base moved by its velocity)
+        states = [(b, read_base_state(cid, b), 2) for b in self.rigid]
+        states += [(b, read_base_state(cid, b), 0) for b in self.fixed if b in given]
+        states = [(b, x, mode) for b, x, mode in states if np.any(x[7:13])]
         if states:
-            bodies, rows = [b for b, _, _ in states], np.array([x for _, x, _ in states])
-            falls = np.array([g for _, _, g in states])[:, None]
+            bodies, rows, modes = zip(*states)
+            rows = np.array(rows)
             poses = _core.frame_poses(rows, dt, np.arange(len(rows), dtype=np.int64), np.full(len(rows), tau))
-            v = rows[:, 7:10] - falls * ((1.0 - tau) * dt * gravity)
-            fixed = falls[:, 0] == 0.0
-            if fixed.any():  # Bullet turns a fixed base's velocity with its spin as it goes
-                v[fixed] = _core.fixed_base_velocity(rows[fixed, 7:10], rows[fixed, 10:13], (1.0 - tau) * dt)
-            for b, pose, vb, wb in zip(bodies, poses.tolist(), v.tolist(), rows[:, 10:13].tolist()):
+            twists = _core.twists_at(rows[:, 7:13], list(modes), dt, tau, gravity)
+            for b, pose, twist in zip(bodies, poses.tolist(), twists.tolist()):
                 raw.resetBasePositionAndOrientation(b, pose[:3], pose[3:], physicsClientId=cid)
-                raw.resetBaseVelocity(b, vb, wb, physicsClientId=cid)
+                raw.resetBaseVelocity(b, twist[:3], twist[3:], physicsClientId=cid)
         for b, (chain, layout, falls) in self.chains.items():
             state = read_base_state(cid, b)
             q, qdot = read_joint_state(cid, b, chain.n_links)
             if not (np.any(state[7:13]) or np.any(qdot)):
                 continue
             motion = chain.motion(state, q, qdot, dt)
-            twist = state[7:13].copy()
-            if falls:
-                twist[:3] -= (1.0 - tau) * dt * gravity
+            twist = _core.twists_at(state[None, 7:13], [2], dt, tau, gravity)[0] if falls else state[7:13]
             put_body(cid, b, motion.base_pose(tau), twist, layout, motion.joint_positions(tau), qdot)
         for b, why in self.stuck.items():
             self._warn(("stuck", b), f"body {b} is not taken back with the world when a contact takes it back to "

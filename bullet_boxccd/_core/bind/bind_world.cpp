@@ -59,15 +59,6 @@ Out<double, -1, 7> py_frame_poses(const States &state, double dt, const Index<-1
     return Out<double, -1, 7>(out, {n, 7}, owner);
 }
 
-// (n, 3): fixed_base_velocity_before of each row of v_end and w (n, 3) over h.
-Out<double, -1, 3> py_fixed_base_velocity(const In<-1, 3> &v_end, const In<-1, 3> &w, double h) {
-    const size_t n = v_end.shape(0);
-    if (w.shape(0) != n) throw nb::value_error("v_end and w differ in length");
-    auto [out, owner] = new_buffer<double>(3 * n);
-    for (size_t i = 0; i < n; ++i) fixed_base_velocity_before(v_end.data() + 3 * i, w.data() + 3 * i, h, out + 3 * i);
-    return Out<double, -1, 3>(out, {n, 3}, owner);
-}
-
 Out<int64_t, -1, 2> py_candidate_pairs(const In<-1, 6> &bounds, int64_t n_fast, const Index<-1> &frame,
                                        const Index<-1> &frame_body, const Bytes &self_collides,
                                        const Index<-1> &group, const Index<-1> &mask, int filter_mode) {
@@ -193,6 +184,19 @@ nb::object sweeper_fast(Sweeper &s, double dt, nb::handle frames, nb::handle twi
     return nb::make_tuple(to_list(f.boxes), f.slack, to_list(f.frames));
 }
 
+// (n, 6): velocity_at of each row of `after` (n, 6: v, w after the step; the velocities
+// before it not known) with its mode (0 or 2).
+Out<double, -1, 6> py_twists_at(const In<-1, 6> &after, nb::handle modes, double dt, double tau,
+                                const In<3> &gravity) {
+    const size_t n = after.shape(0);
+    const std::vector<int64_t> mode = int_list(modes);
+    if (mode.size() != n) throw nb::value_error("twists_at: one mode per row");
+    auto [out, owner] = new_buffer<double>(6 * n);
+    for (size_t i = 0; i < n; ++i)
+        velocity_at(after.data() + 6 * i, nullptr, int(mode[i]), dt, tau, gravity.data(), out + 6 * i);
+    return Out<double, -1, 6>(out, {n, 6}, owner);
+}
+
 // (v (n, 3), w (n, 3), [still]) of Sweeper::velocities_at; frames and modes are lists,
 // twist0 an (n_frames, 6) array or None, gravity (3,).
 nb::tuple sweeper_velocities_at(const Sweeper &s, double dt, double tau, nb::handle frames, nb::handle modes,
@@ -280,9 +284,10 @@ void bind_world(nb::module_ &m) {
     m.def("path_rows_between", &py_path_rows_between, nb::arg("poses0"), nb::arg("poses1"), nb::arg("boxes"),
           nb::arg("box_frame"), nb::arg("X_CS"), nb::arg("half"));
     m.def("frame_poses", &py_frame_poses, nb::arg("state"), nb::arg("dt"), nb::arg("frames"), nb::arg("taus"));
-    m.def("fixed_base_velocity", &py_fixed_base_velocity, nb::arg("v_end"), nb::arg("w"), nb::arg("h"),
-          "The linear velocities that fixed bases moved by their velocities start a step of h with to end it at "
-          "v_end (Bullet turns them with the spin w as it goes).");
+    m.def("twists_at", &py_twists_at, nb::arg("after"), nb::arg("modes"), nb::arg("dt"), nb::arg("tau"),
+          nb::arg("gravity"),
+          "(n, 6) the velocities frames leave step fraction tau with when the world is taken back there, from "
+          "those after the step (mode 0: a fixed base moved by its velocity; 2: less the rest's gravity).");
     m.def("candidate_pairs", &py_candidate_pairs, nb::arg("bounds"), nb::arg("n_fast"), nb::arg("frame"),
           nb::arg("frame_body"), nb::arg("self_collides"), nb::arg("group"), nb::arg("mask"), nb::arg("filter_mode"));
     m.def("first_touches", &py_first_touches, nb::arg("rows"), nb::arg("pairs"), nb::arg("fit_tolerance"),

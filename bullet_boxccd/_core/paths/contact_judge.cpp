@@ -91,19 +91,17 @@ Judgement judge_contact(const double *row_a, const double *row_b, double lo, dou
 
 namespace {
 
-// Whether pybullet resolves a link pair wrongly from the step's end, once it overlapped by
-// the target at s_act. With n the least-overlap axis then (from A towards B): overlapping
-// at the end, the least overlap pointing back out of the far side, or B's centre short of
-// the middle of the pair's reach along n; apart at the end, B's centre on A's far side
-// along n (it went through). A pair that parted on the side it came from, or sideways
-// (a strike, a link sweeping along a face), is pybullet's to resolve.
-bool link_goes_wrong(const BoxPath &a, const BoxPath &b, double s_act) {
-    Vec3 axis1, n;
-    const double depth1 = path_separation(a, b, 1.0, axis1.data());
+// Whether pybullet resolves a link pair wrongly from the step's end (the boxes at Xa, Xb
+// there, their depth1 along axis1), once it overlapped by the target at s_act. With n the
+// least-overlap axis then (from A towards B): overlapping at the end, the least overlap
+// pointing back out of the far side, or B's centre short of the middle of the pair's reach
+// along n; apart at the end, B's centre on A's far side along n (it went through). A pair
+// that parted on the side it came from, or sideways (a strike, a link sweeping along a
+// face), is pybullet's to resolve.
+bool link_goes_wrong(const BoxPath &a, const BoxPath &b, double s_act, const double *Xa, const double *Xb,
+                     double depth1, const Vec3 &axis1) {
+    Vec3 n;
     path_separation(a, b, s_act, n.data());
-    double Xa[16], Xb[16];
-    a.pose(1.0, Xa);
-    b.pose(1.0, Xb);
     const Vec3 ab{Xb[3] - Xa[3], Xb[7] - Xa[7], Xb[11] - Xa[11]};
     const double along = dot3(ab, n);
     if (depth1 <= 0.0) return along < 0.0;
@@ -128,10 +126,14 @@ LinkJudgement judge_link_contact(const BoxPath &a, const BoxPath &b, double fit_
     const double target = out.pressing ? std::max(d0, 0.0) + std::max(penetration, creep_depth) : penetration;
     // A pressing pair ending in contact but shallower than the target is pybullet's (its
     // solver holds it); one ending apart either lifted off or went through.
-    const double d1 = path_depth(a, b, 1.0);
+    double Xa[16], Xb[16];
+    a.pose(1.0, Xa);
+    b.pose(1.0, Xb);
+    Vec3 axis1;
+    const double d1 = pose_separation(Xa, ha, Xb, hb, axis1.data());
     if (!(out.pressing && d1 < target && d1 >= 0.0)) {
         const double act = first_depth(a, b, out.touch, target);
-        if (!std::isnan(act) && link_goes_wrong(a, b, act)) out.act = act;
+        if (!std::isnan(act) && link_goes_wrong(a, b, act, Xa, Xb, d1, axis1)) out.act = act;
     }
     if (out.contact.facet < 0) {
         path_separation(a, b, out.touch, out.normal.data());

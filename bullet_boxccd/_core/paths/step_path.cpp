@@ -223,6 +223,18 @@ void fixed_base_velocity_before(const double *v_end, const double *w, double h, 
     for (int i = 0; i < 3; ++i) v[i] = (v_end[i] - h * wv[i] + h * h * along * w[i]) * scale;
 }
 
+void velocity_at(const double *after, const double *before, int mode, double dt, double tau, const double *gravity,
+                 double *out) {
+    std::copy(after, after + 6, out);
+    if (mode == 0) {
+        fixed_base_velocity_before(after, after + 3, (1.0 - tau) * dt, out);
+    } else if (mode == 1 && before) {
+        for (int i = 0; i < 6; ++i) out[i] = before[i] + tau * (after[i] - before[i]);
+    } else {
+        for (int i = 0; i < 3; ++i) out[i] -= gravity[i] * (1.0 - tau) * dt;
+    }
+}
+
 void frame_pose(const double *state, double dt, double tau, double *pose) {
     const double *q1 = state + fs::kOrientation, *v = state + fs::kVelocity, *w = state + fs::kAngularVelocity;
     const double speed = norm3(w);

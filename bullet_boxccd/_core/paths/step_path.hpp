@@ -73,6 +73,16 @@ void frame_pose(const double *state, double dt, double tau, double *pose);
 // a step of h at v_end: (I + h [w x])^-1 v_end.
 void fixed_base_velocity_before(const double *v_end, const double *w, double h, double *v);
 
+// The velocities (v, w: 6) a frame leaves step fraction tau of a step of dt with when the
+// world is taken back there, so that the rest of the step simulated again ends as the
+// step did, from its velocities after the step (`after`: v, w) and, if known, before it
+// (`before`, or null). mode 0: a fixed base moved by its velocity (the linear one as
+// fixed_base_velocity_before gives it over the rest); 1: between before and after, in
+// proportion (2 without before); 2: after, less the rest of the step's gravity (a body
+// struck as the step began, or one whose velocities before are not known).
+void velocity_at(const double *after, const double *before, int mode, double dt, double tau, const double *gravity,
+                 double *out);
+
 // Separating-axis overlap depth of two boxes at poses X_WA, X_WB (4x4 row-major)
 // with half extents ha, hb: > 0 overlapping by that much, <= 0 apart (the gap,
 // negated, along the best of the 15 axes). The one overlap test of every path kind.

@@ -204,14 +204,7 @@ void Sweeper::velocities_at(double dt, double tau, const int64_t *frames, const 
         for (int i = 0; i < 6; ++i) rest = rest && after[i] == 0.0 && before[i] == 0.0;
         still[k] = rest;
         double out[6];
-        for (int i = 0; i < 6; ++i) out[i] = after[i];
-        if (mode[k] == 0) {
-            fixed_base_velocity_before(after, after + 3, (1.0 - tau) * dt, out);
-        } else if (mode[k] == 1 && before) {
-            for (int i = 0; i < 6; ++i) out[i] = before[i] + tau * (after[i] - before[i]);
-        } else {
-            for (int i = 0; i < 3; ++i) out[i] -= gravity[i] * (1.0 - tau) * dt;
-        }
+        velocity_at(after, before, mode[k], dt, tau, gravity, out);
         std::copy(out, out + 3, v + 3 * k);
         std::copy(out + 3, out + 6, w + 3 * k);
     }

@@ -113,13 +113,10 @@ class Sweeper {
     double slack(double dt) const;
 
     // The velocities the n frames (checked) leave step fraction tau of a step of dt
-    // with when the world is taken back there: mode[k] 0 keeps the frame's velocities
-    // after the step, its linear one turned back by its spin over the rest of the step
-    // (a kinematic frame: fixed_base_velocity_before); 1 takes them between twist0 (n_frames x 6:
-    // the velocities the step began with) and those after it, in proportion; 2 keeps
-    // those after it less the rest of the step's gravity (a body struck as the step
-    // began; mode 1 is taken as 2 when twist0 is null). still[k]: the frame was at
-    // rest before and after the step (only known with twist0). v, w: (n, 3) each.
+    // with when the world is taken back there: velocity_at (step_path.hpp) with mode[k],
+    // twist0 (n_frames x 6: the velocities the step began with, or null) and gravity.
+    // still[k]: the frame was at rest before and after the step (only known with
+    // twist0). v, w: (n, 3) each.
     void velocities_at(double dt, double tau, const int64_t *frames, const int8_t *mode, size_t n,
                        const double *twist0, const double *gravity, double *v, double *w, uint8_t *still) const;
 
