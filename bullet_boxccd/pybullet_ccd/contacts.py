@@ -36,6 +36,7 @@ from the change on, as in Box2D's time-of-impact loop.
 from __future__ import annotations
 
 import heapq
+import itertools
 import math
 from dataclasses import dataclass
 
@@ -85,7 +86,7 @@ class _Paths:
         self.rows = sw.rows.copy()
         self.box = sw.boxes
         self.frame = tables.box_frame[sw.boxes]
-        self.track = {}
+        self.track = {}  # in the order of the frames' first rows (the order pybullet is given their bodies)
         for r, f in enumerate(self.frame.tolist()):
             self.track.setdefault(f, _Track([])).rows.append(r)
         self.kinematic = kinematic
@@ -262,19 +263,16 @@ class Contacts:
         """Take the contacts in time order up to ``horizon``, acting on those pybullet would
         resolve wrongly, and sweep again the pairs of every body whose path changed. With
         ``back``, stop at the first one and return its time; else 1."""
-        pairs_of = {}
-        for q, (i, j) in enumerate(sw.pairs.tolist()):
-            for r in (i, j):
-                pairs_of.setdefault(paths.frame[r], []).append(q)
-        index = sw.pair_index
+        pair_frames = paths.frame[sw.pairs]
         # The sweep's first touches are queued at their touch and judged when they come up
         # (a contact's action is never before its touch): those after the step's first
         # action are not judged at all when the world goes back there.
-        heap = [(tau, k, index[(i, j)], i, j, (0, 0), None) for k, (i, j, tau) in enumerate(sw.hits)]
+        heap = [(tau, k, i, j, (0, 0), None) for k, (i, j, tau) in enumerate(sw.hits)]
         heapq.heapify(heap)
+        order = itertools.count(len(heap))  # ties in time go in the order queued
         budget = 8 * len(paths.track) + 8  # a cap on actions: each one changes a path
         while heap:
-            tau_r, _, q, i, j, versions, info = heapq.heappop(heap)
+            tau_r, _, i, j, versions, info = heapq.heappop(heap)
             if back and tau_r > horizon:
                 break
             ta, tb = paths.track[paths.frame[i]], paths.track[paths.frame[j]]
@@ -282,7 +280,7 @@ class Contacts:
                 if (ta.version, tb.version) == (0, 0):
                     info = self._judge(paths, i, j, 0.0, tau_r, back)
                     if info["act_at"] > tau_r:
-                        heapq.heappush(heap, (info["act_at"], id(info), q, i, j, versions, info))
+                        heapq.heappush(heap, (info["act_at"], next(order), i, j, versions, info))
                         continue
                 else:
                     versions = (-1, -1)
@@ -290,7 +288,7 @@ class Contacts:
                 since = max(ta.since, tb.since)
                 touch = self._first_touches(paths, [(i, j)], since)[0]
                 if touch is not None:
-                    self._queue(heap, paths, q, i, j, since, touch, back)
+                    self._queue(heap, order, paths, i, j, since, touch, back)
                 continue
             if info["action"] is not None and budget <= 0:
                 info["action"] = None  # out of budget: pybullet's, from here on
@@ -308,13 +306,13 @@ class Contacts:
             changed = self._act(paths, i, j, tau_r, info, user_moved)
             self._report(paths, i, j, info, bool(changed), events)
             budget -= bool(changed)
-            again = [(q2, *sw.pairs[q2].tolist()) for f in changed for q2 in pairs_of.get(f, ())]
-            again = [(q2, i2, j2) for q2, i2, j2 in again  # two bodies standing still: nothing more happens
+            again = [sw.pairs[np.flatnonzero((pair_frames == f).any(axis=1))].tolist() for f in changed]
+            again = [(i2, j2) for pairs in again for i2, j2 in pairs  # two bodies standing still: nothing more happens
                      if paths.status(paths.frame[i2]) != _STOPPED or paths.status(paths.frame[j2]) != _STOPPED]
-            touches = self._first_touches(paths, [(i2, j2) for _, i2, j2 in again], tau_r)
-            for (q2, i2, j2), touch in zip(again, touches):
+            touches = self._first_touches(paths, again, tau_r)
+            for (i2, j2), touch in zip(again, touches):
                 if touch is not None:
-                    self._queue(heap, paths, q2, i2, j2, tau_r, touch, back)
+                    self._queue(heap, order, paths, i2, j2, tau_r, touch, back)
         return 1.0
 
     def _first_touches(self, paths, pairs, lo):
@@ -329,12 +327,12 @@ class Contacts:
         self.stats.count(states)
         return [None if math.isnan(t) else lo + t * (1.0 - lo) for t in tau.tolist()]
 
-    def _queue(self, heap, paths, q, i, j, lo, touch, back):
+    def _queue(self, heap, order, paths, i, j, lo, touch, back):
         """Judge the pair's contact (first touch ``touch`` in the window [lo, 1]) and queue
         it at the time to act (or at its touch, to be reported only)."""
         ta, tb = paths.track[paths.frame[i]], paths.track[paths.frame[j]]
         info = self._judge(paths, i, j, lo, touch, back)
-        heapq.heappush(heap, (info["act_at"], id(info), q, i, j, (ta.version, tb.version), info))
+        heapq.heappush(heap, (info["act_at"], next(order), i, j, (ta.version, tb.version), info))
 
     def _judge(self, paths, i, j, lo, touch, back):
         """What the pair (rows i, j) needs: {"act_at": tau, "action": None | "back" | "stop"

@@ -55,10 +55,6 @@ class Sweep:
     pairs: np.ndarray  # (m, 2) candidate pairs of rows
     hits: list  # (row a, row b, first touch as a step fraction), in the order found
 
-    @property
-    def pair_index(self) -> dict:
-        return {(int(i), int(j)): q for q, (i, j) in enumerate(self.pairs.tolist())}
-
 
 # A step's partners of the fast boxes come from pybullet's broad phase (one
 # getOverlappingObjects per fast box) unless reading every moving frame's pose costs
