@@ -415,6 +415,52 @@ def test_removed_and_recreated_body_with_the_same_id_is_swept(cid):
     assert through[True] == 0 and through[False] >= 3, through
 
 
+def batch_scene(cid, use, speed):
+    """Boxes made in one createMultiBody(batchPositions=...) call (pybullet's client then
+    lists only the last of them) thrown at a 1 cm wall."""
+    reset(cid)
+    box(cid, [0.005, 1, 1], [0, 0, 0], mass=0.0)
+    col = p.createCollisionShape(p.GEOM_BOX, halfExtents=[0.05] * 3, physicsClientId=cid)
+    ids = p.createMultiBody(1, col, batchPositions=[[-0.5, y, 0] for y in (-0.6, -0.2, 0.2, 0.6)],
+                            physicsClientId=cid)
+    for k, b in enumerate(ids):
+        p.changeDynamics(b, -1, linearDamping=0, angularDamping=0, maxJointVelocity=1e4, physicsClientId=cid)
+        p.resetBaseVelocity(b, [speed * (1 + 0.3 * k), 0, 0], [0, 0, 0], physicsClientId=cid)
+    run(cid, use, 24)
+    return [p.getBasePositionAndOrientation(b, physicsClientId=cid) + p.getBaseVelocity(b, physicsClientId=cid)
+            for b in ids]
+
+
+def test_boxes_made_in_one_batch_are_all_swept(cid):
+    fast = [state[0][0] for state in batch_scene(cid, True, 150.0)]
+    assert max(fast) < -0.05, fast  # every one of the batch stopped at the wall
+    assert max(state[0][0] for state in batch_scene(cid, False, 150.0)) > 0.01  # plain pybullet lets them through
+    assert batch_scene(cid, True, 0.5) == batch_scene(cid, False, 0.5)  # slow: bit for bit as plain pybullet
+
+
+def lift_scene(cid, use):
+    """A mass-0 platform lifting a resting cube by the velocity the user gives it at every
+    step, the first time before BoxCCD is made; a body added halfway (the world is read
+    again then)."""
+    reset(cid, gravity=-9.81)
+    lift = box(cid, [0.5, 0.5, 0.02], [0, 0, 0.5], mass=0.0)
+    cube = box(cid, [0.05] * 3, [0, 0, 0.57])
+    ccd, out = None, []
+    for k in range(24):
+        p.resetBaseVelocity(lift, [0, 0, 0.5], [0, 0, 0], physicsClientId=cid)
+        if k == 12:
+            box(cid, [0.05] * 3, [3, 0, 0.05])
+        ccd = ccd or (BoxCCD(cid) if use else None)
+        ccd.step() if ccd else p.stepSimulation(physicsClientId=cid)
+        out.append(p.getBasePositionAndOrientation(cube, physicsClientId=cid) +
+                   p.getBaseVelocity(cube, physicsClientId=cid))
+    return out
+
+
+def test_a_platform_given_a_velocity_before_boxccd_was_made_lifts_as_in_plain_pybullet(cid):
+    assert lift_scene(cid, True) == lift_scene(cid, False)
+
+
 def test_body_made_dynamic_with_change_dynamics_is_swept(cid):
     through = {False: 0, True: 0}
     for use in (False, True):

@@ -60,7 +60,9 @@ class FrameState:
         # whole: articulated.py).
         self.moving = [f for f in tables.moving if f not in articulated]
         self._moving_twists = [self._twist[f] for f in self.moving]
-        self.with_velocity = set()  # static frames the user gave a velocity (Bullet moves them)
+        # Static frames the user gave a velocity (Bullet moves them), before this state was
+        # made too: Bullet keeps moving a fixed base by its velocity at every step.
+        self.with_velocity = {f for f in static if any(x != 0.0 for part in self._twist[f]() for x in part)}
         self.kinematic = []  # static frames the user moved before the current step, or that have a velocity
         self.pose0 = {}  # kinematic frame -> its pose before the current step (E0)
         self.jumps = {}  # kinematic frame -> (E0, P1): it jumped before the step

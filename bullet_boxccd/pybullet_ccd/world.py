@@ -134,7 +134,7 @@ class World:
             dirty = None  # read everything
         self._seen = max(j.reset, j.last_body, j.filters, self._seen)
         self.count = count
-        ids = [raw.getBodyUniqueId(i, physicsClientId=self.cid) for i in range(count)]
+        ids = self._ids(count)
         # A registration outlives no change of its body (a new body may reuse the id).
         self.registered = {k: v for k, v in self.registered.items()
                            if v[0] > max(j.reset, j.bodies.get(k[0], 0)) and k[0] in ids}
@@ -151,6 +151,24 @@ class World:
         self._build(ids)
         self._warn_unseen(ids)
         return True
+
+    def _ids(self, count):
+        """Every body's id. After ``createMultiBody(batchPositions=...)`` pybullet's client
+        lists only the last body of the batch (getNumBodies, getBodyUniqueId, getBodyInfo),
+        though the server simulates them all: when a body the journal saw being made is
+        missing from the list but alive, the client's list is brought up to date
+        (``syncBodyInfo``, which changes nothing in the simulation) and read again."""
+        cid = self.cid
+        ids = [raw.getBodyUniqueId(i, physicsClientId=cid) for i in range(count)]
+        for b in self.journal.created.difference(ids):
+            try:
+                raw.getBasePositionAndOrientation(b, physicsClientId=cid)
+            except pybullet.error:
+                continue
+            raw.syncBodyInfo(physicsClientId=cid)
+            self.count = raw.getNumBodies(physicsClientId=cid)
+            return [raw.getBodyUniqueId(i, physicsClientId=cid) for i in range(self.count)]
+        return ids
 
     def _warn_unseen(self, ids):
         unseen = [b for b in ids if b not in self.journal.created]
