@@ -14,6 +14,7 @@ any other.
 
 from __future__ import annotations
 
+import math
 from functools import partial
 
 import numpy as np
@@ -48,6 +49,7 @@ class FrameState:
         f = tables.filters
         # The core's sweeper holds the box tables and the rows (``rows`` is a numpy view of
         # them): a step's calls into the core pass no array.
+        self._reach = sweep_reach
         self.sweeper = _core.Sweeper(tables.box_frame, tables.radius, tables.X_CS, tables.half, sweep_reach,
                                      tables.body, tables.self_collides, f.group, f.mask, f.mode)
         self.rows = self.sweeper.state
@@ -120,10 +122,16 @@ class FrameState:
         self.read_poses(frames)
         self.read_twists(frames)
         starts = _core.frame_poses(self.rows, dt, np.array(frames, dtype=np.int64), np.zeros(len(frames)))
+        t = self.tables
         for f, p1 in zip(frames, starts):
             e0 = self.pose0[f]
             a, b = p1[3:], e0[3:]
             turn = b[3] * a[:3] - a[3] * b[:3] - np.cross(a[:3], b[:3])  # sin(angle / 2) axis of q1 q0^-1
-            if np.abs(p1[:3] - e0[:3]).max() > _JUMP * (1.0 + np.abs(e0[:3]).max()) or \
-                    np.linalg.norm(turn) > _JUMP:
+            shift, sin_half = np.linalg.norm(p1[:3] - e0[:3]), min(float(np.linalg.norm(turn)), 1.0)
+            if shift <= _JUMP * (1.0 + np.abs(e0[:3]).max()) and sin_half <= _JUMP:
+                continue
+            # A jump no box of the frame moves farther in than a free box may move unswept in a
+            # step is pybullet's, as such a free box's step is.
+            boxes = t.frame_boxes[f]
+            if np.any(shift + 2.0 * math.asin(sin_half) * t.radius[boxes] > self._reach[boxes]):
                 self.jumps[f] = (e0, p1)
