@@ -549,7 +549,8 @@ def test_substeps_are_each_swept(cid, substeps):
     dict(fit_tolerance=0.0), dict(fit_tolerance=2.0), dict(penetration=1.0), dict(penetration=0.0),
     dict(penetration=float("nan")), dict(max_partial_steps=-1), dict(max_partial_steps=2.5),
     dict(depth_tolerance=-1.0), dict(depth_tolerance=float("nan")), dict(sweep_distance=-0.01),
-    dict(sweep_distance="far"), dict(self_collision_bodies=[999]), dict(tolerances=1e-12), dict(max_turn=0.0),
+    dict(sweep_distance="far"), dict(self_collision_bodies=[999]), dict(self_collision_bodies=5),
+    dict(tolerances=1e-12), dict(max_turn=0.0),
     dict(max_turn=1.0), dict(max_turn=float("nan")),
 ])
 def test_bad_arguments_raise_naming_argument_and_value(cid, kwargs):
@@ -582,8 +583,9 @@ def test_bad_calls_raise(cid):
         ccd.register_box(plate, -1, [0.3, 0.2, 0.0004])
     with pytest.raises(InvalidInputError, match="999"):
         ccd.set_collision_filter_pair(999, cube, -1, -1, False)
-    with pytest.raises(InvalidInputError, match="physics_client_id"):
-        BoxCCD(12345)
+    for bad in (12345, -1, 2 ** 40, 1.0):
+        with pytest.raises(InvalidInputError, match="physics_client_id"):
+            BoxCCD(bad)
 
 
 @pytest.mark.parametrize("dt", [0.0, -1 / 240, float("nan")])

@@ -516,8 +516,8 @@ class BoxCCD:
 
 # ------------------------------------------------------------------ checks
 def _client(cid):
-    if isinstance(cid, bool) or not isinstance(cid, numbers.Integral):
-        raise InvalidInputError(f"physics_client_id is {cid!r}; expected an int")
+    if isinstance(cid, bool) or not isinstance(cid, numbers.Integral) or not 0 <= cid < 2 ** 31:
+        raise InvalidInputError(f"physics_client_id is {cid!r}; expected an int >= 0 (p.connect's result)")
     if not raw.getConnectionInfo(int(cid))["isConnected"]:
         raise InvalidInputError(f"physics_client_id is {cid!r}; it is not connected (p.connect)")
     return int(cid)
@@ -550,6 +550,10 @@ def _body_exists(cid, b):
 
 
 def _bodies(cid, bodies, name):
+    try:
+        bodies = list(bodies)
+    except TypeError:
+        raise InvalidInputError(f"{name} is {bodies!r}; expected body ids (a list, tuple or set of ints)") from None
     out = set()
     for b in bodies:
         if isinstance(b, bool) or not isinstance(b, numbers.Integral) or not _body_exists(cid, int(b)):
