@@ -296,8 +296,9 @@ def test_partial_steps_taken_again_shorter_leave_the_rest_of_the_world_as_pybull
 def _loose_bodies(cid):
     """A sphere (spinning), a maximal-coordinate capsule (spinning about its axis), a
     free-floating two-link capsule body (its joint still), a two-link capsule arm on a
-    fixed base swinging under gravity, and a mass-0 sphere the user moves by a velocity,
-    all far from any box: bodies with no box."""
+    fixed base swinging under gravity, a spinning sphere with pybullet's default damping
+    and one with damping set, and a mass-0 sphere the user moves by a velocity, all far
+    from any box: bodies with no box."""
     sphere = p.createCollisionShape(p.GEOM_SPHERE, radius=0.1, physicsClientId=cid)
     capsule = p.createCollisionShape(p.GEOM_CAPSULE, radius=0.05, height=0.3, physicsClientId=cid)
     ball = p.createMultiBody(1.0, sphere, basePosition=[5, 5, 5], physicsClientId=cid)
@@ -319,7 +320,11 @@ def _loose_bodies(cid):
             p.changeDynamics(b, link, linearDamping=0, angularDamping=0, physicsClientId=cid)
         p.resetBaseVelocity(b, v, w, physicsClientId=cid)
     p.resetJointState(arm, 0, 0.3, 1.0, physicsClientId=cid)
-    return ball, pill, pair, arm, platform
+    damped = [p.createMultiBody(1.0, sphere, basePosition=[x, 0, 8], physicsClientId=cid) for x in (4, 6)]
+    p.changeDynamics(damped[1], -1, linearDamping=0.5, angularDamping=0.3, physicsClientId=cid)
+    for b in damped:
+        p.resetBaseVelocity(b, [3, -1, 2], [4, 1, -2], physicsClientId=cid)
+    return ball, pill, pair, arm, *damped, platform
 
 
 def _state_of(cid, b):
@@ -333,8 +338,8 @@ def _state_of(cid, b):
 def test_bodies_with_no_box_go_back_with_the_world(cid):
     """When a contact takes the world back to its time, the bodies BoxCCD sweeps no box of
     go back too (the rest of the step simulated again would otherwise move them twice over
-    the time gone back): a sphere, a maximal-coordinate capsule and a two-link capsule body
-    in free flight, and a fixed sphere given a velocity and a spin before every step
+    the time gone back): a sphere, a maximal-coordinate capsule, a two-link capsule body
+    and two damped spheres in free flight, and a fixed sphere given a velocity and a spin before every step
     (Bullet moves it by them, turning its velocity as it goes; so for a fixed box beside
     it), end each step where plain pybullet has them, and a fixed-base arm's base stays put.
     The cube strikes face on, so the rest of each step goes in one piece: pybullet's

@@ -161,7 +161,7 @@ class BoxCCD:
             rigid_reach[self._chains.boxes] = math.inf  # swept on their own paths (articulated)
             self._state = FrameState(self.cid, t, rigid_reach, self._chains.frames)
             self._others = Others(self.cid, self.world.journal, t.other_rigid, t.other_chains, t.other_fixed,
-                                  t.other_stuck, self._warn)
+                                  t.other_stuck, self._warn, self.world.maximal)
             self._watched = bool(self._state.moving) or bool(self._chains.watched)
             self._known = False
             self.stats.tracked_boxes = len(t.half)

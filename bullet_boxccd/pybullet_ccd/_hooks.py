@@ -36,13 +36,16 @@ import pybullet
 from .. import _core
 
 __all__ = ["Journal", "journal", "raw", "install", "new_serial", "last_serial", "replay_impulses", "WRAPPED",
-           "SIGNATURES", "bind", "shape_type", "MjcfLoad", "OR_MODE"]
+           "SIGNATURES", "bind", "shape_type", "MjcfLoad", "OR_MODE", "DAMPING", "damping"]
 
 # pybullet's default contactERP (the share of a contact's penetration its solver removes in a
 # step, as a velocity of erp depth / dt): measured, setting 0.08 leaves every world bit-identical.
 CONTACT_ERP = 0.08
 # pybullet's default maxJointVelocity: it clamps a multibody's |v| (m/s) and |w| (rad/s) to it.
 MAX_VELOCITY = 100.0
+# pybullet's default linearDamping and angularDamping of a multibody, Bullet's 0.04f (a body
+# made with useMaximalCoordinates=True has none by default): measured.
+DAMPING = (0.03999999910593033, 0.03999999910593033)
 # pybullet's defaults (PhysicsServerCommandProcessor): collisionFilterMode 1 ("group A
 # & mask B, OR group B & mask A"); a new world starts with it.
 OR_MODE = 1
@@ -94,6 +97,7 @@ class Journal:
     num_substeps: int = 0  # as last set through setPhysicsEngineParameter (0: never set)
     contact_erp: float = CONTACT_ERP  # as last set through setPhysicsEngineParameter (pybullet reports none)
     max_velocity: dict = field(default_factory=dict)  # body -> maxJointVelocity set through changeDynamics
+    damping: dict = field(default_factory=dict)  # body -> [linear, angular] damping set through changeDynamics
     # Collision filters, as pybullet's collision filter plugin keeps them.
     pair_rules: dict = field(default_factory=dict)  # (body, link, body, link) in pybullet's key order -> enable
     group_mask: dict = field(default_factory=dict)  # (body, link) -> (group, mask) set by the user
@@ -327,6 +331,14 @@ def _forget(j, b):
     j.maximal.pop(b, None)
     j.mjcf.pop(b, None)
     j.link_geometry.pop(b, None)
+    j.damping.pop(b, None)
+
+
+def damping(j, b, maximal):
+    """(linear, angular) damping of body b as Bullet damps a multibody's base (``velocity_at``
+    in the core); none for a maximal-coordinate body (pybullet's rigid bodies damp by
+    another rule, and by none unless the user set it)."""
+    return (0.0, 0.0) if maximal else tuple(j.damping.get(b, DAMPING))
 
 
 def _ids(result):
@@ -487,6 +499,11 @@ def _load_soft_body(cid, a, result):
 def _change_dynamics(cid, a, result):
     if a.get("maxJointVelocity") is not None:
         journal(cid).max_velocity[int(a["bodyUniqueId"])] = float(a["maxJointVelocity"])
+    for k, name in enumerate(("linearDamping", "angularDamping")):
+        if a.get(name) is not None and float(a[name]) >= 0.0:  # pybullet ignores a negative one
+            # (the body's frames are read again: their damping is in the plugin's tables)
+            _structure(cid, a["bodyUniqueId"]).damping.setdefault(int(a["bodyUniqueId"]), list(DAMPING))[k] = \
+                float(a[name])
     if "mass" in a:  # a mass change may switch a base between fixed and free
         b = int(a["bodyUniqueId"])
         j = _structure(cid, b)

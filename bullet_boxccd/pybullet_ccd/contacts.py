@@ -140,7 +140,7 @@ class _Paths:
         if tr.velocity is None:
             st = self.state
             mode = 2 if st.twist0 is None or f in self.struck else 1
-            v, w, _ = st.sweeper.velocities_at(self.dt, tau, [f], [mode], st.twist0, self.gravity)
+            v, w, _ = st.sweeper.velocities_at(self.dt, tau, [f], [mode], st.twist0, self.gravity, self.tables.damping)
             tr.velocity = (v[0], w[0])
         for r in tr.rows:
             X = _core.row_poses(self.rows[[r]], np.array([tau]))[0]
@@ -246,7 +246,7 @@ class Contacts:
         frames = free + [f for f in state.with_velocity if f in state.kinematic]
         whole = state.twist0 is None
         modes = [2 if whole or f in struck else 1 for f in free] + [0] * (len(frames) - len(free))
-        v, w, still = state.sweeper.velocities_at(dt, tau, frames, modes, state.twist0, gravity)
+        v, w, still = state.sweeper.velocities_at(dt, tau, frames, modes, state.twist0, gravity, tables.damping)
         # A body standing still before and after the step stays where it is (placing it
         # would wake a sleeping one).
         keep = [k for k, s in enumerate(still) if not s]

@@ -6,15 +6,16 @@ of the step simulated again from there would move these twice over that time. Th
 state is read only then, after the step being gone back into:
 
 * a free single body goes where Bullet's path has it at that time, with its velocity
-  after the step less the rest of the step's gravity (its velocity before the step is
-  not read; in free flight this ends the rest of the step exactly where the step ended);
+  after the step less the rest of the step's gravity and damping (its velocity before
+  the step is not read; in free flight this ends the rest of the step exactly where the
+  step ended);
 * an articulated one goes back in joint space (``chain``), its base's velocity so (a
   fixed base's kept), its joint velocities those after the step;
 * a fixed base the user gave a velocity (Bullet moves it by it) goes back on its path,
   with the velocity that the rest of the step turns into the one it ended with.
 
-pybullet's damping, and the joints' accelerations over the rest of the step, are applied
-again. A body whose state pybullet does not give (a soft body, the links of a
+For a robot, its damping and its joints' accelerations over the rest of the step are
+applied again. A body whose state pybullet does not give (a soft body, the links of a
 maximal-coordinate body) cannot go back: a warning names it the first time the world
 goes back without it.
 """
@@ -25,7 +26,7 @@ import numpy as np
 import pybullet
 
 from .. import _core
-from ._hooks import raw
+from ._hooks import damping, raw
 from .chain import read_base_state, read_chain, read_joint_state
 
 __all__ = ["Others", "joint_layout", "put_body"]
@@ -59,8 +60,9 @@ class Others:
     (fixed bases with no links: they move only if the user gave them a velocity, which the
     journal knows); ``stuck``: {body: why it cannot go back}."""
 
-    def __init__(self, cid, journal, rigid, articulated, fixed, stuck, warn):
+    def __init__(self, cid, journal, rigid, articulated, fixed, stuck, warn, maximal):
         self.cid, self.journal, self.rigid, self.fixed = cid, journal, list(rigid), list(fixed)
+        self._maximal = maximal  # body -> whether it is in maximal coordinates
         self.stuck, self._warn = dict(stuck), warn
         self._unread, self.chains = list(articulated), {}  # chains: {body: (chain, joint layout, falls)}
 
@@ -90,7 +92,8 @@ class Others:
             bodies, rows, modes = zip(*states)
             rows = np.array(rows)
             poses = _core.frame_poses(rows, dt, np.arange(len(rows), dtype=np.int64), np.full(len(rows), tau))
-            twists = _core.twists_at(rows[:, 7:13], list(modes), dt, tau, gravity)
+            damp = np.array([damping(self.journal, b, self._maximal(b)) for b in bodies], dtype=np.float64)
+            twists = _core.twists_at(rows[:, 7:13], list(modes), dt, tau, gravity, damp)
             for b, pose, twist in zip(bodies, poses.tolist(), twists.tolist()):
                 raw.resetBasePositionAndOrientation(b, pose[:3], pose[3:], physicsClientId=cid)
                 raw.resetBaseVelocity(b, twist[:3], twist[3:], physicsClientId=cid)

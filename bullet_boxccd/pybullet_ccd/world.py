@@ -37,7 +37,7 @@ import pybullet
 
 from ..motion import pose_matrix
 from . import mjcf
-from ._hooks import journal, new_serial, raw
+from ._hooks import damping, journal, new_serial, raw
 from .events import BoxCCDWarning
 from .filters import Filters, default_group_mask
 from .shapes import SPHERE, Shadow, multibody_boxes, probe_boxes
@@ -92,6 +92,7 @@ class Tables:
     frames_of: dict  # body -> its frames
     filters: Filters
     free_frames: list  # the free bodies' frames
+    damping: np.ndarray  # (F, 2): its body's linear and angular damping, as Bullet damps a free base
     # Bodies with no frame here (others.py): free single ones, articulated ones, fixed bases
     # with no links, and {body: why} those whose state pybullet does not give.
     other_rigid: list
@@ -388,8 +389,10 @@ class World:
             half=half, X_CS=X_CS,
             radius=np.linalg.norm(X_CS[:, :3, 3], axis=1) + np.linalg.norm(half, axis=1),
             frame_boxes=frame_boxes, frames_of=frames_of, filters=Filters(keys, defaults, fgm, self.journal),
-            free_frames=np.flatnonzero(kind == FREE).tolist(), other_rigid=rigid, other_chains=chains,
-            other_fixed=fixed, other_stuck=stuck)
+            free_frames=np.flatnonzero(kind == FREE).tolist(),
+            damping=np.array([damping(self.journal, b, self._bodies[b].maximal) for b, _ in keys],
+                             dtype=np.float64).reshape(-1, 2),
+            other_rigid=rigid, other_chains=chains, other_fixed=fixed, other_stuck=stuck)
 
     # ---------------------------------------------------------------- summary
     def maximal(self, b) -> bool:

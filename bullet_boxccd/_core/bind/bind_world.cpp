@@ -185,32 +185,37 @@ nb::object sweeper_fast(Sweeper &s, double dt, nb::handle frames, nb::handle twi
 }
 
 // (n, 6): velocity_at of each row of `after` (n, 6: v, w after the step; the velocities
-// before it not known) with its mode (0 or 2).
+// before it not known) with its mode (0 or 2) and damping (n, 2), if given.
 Out<double, -1, 6> py_twists_at(const In<-1, 6> &after, nb::handle modes, double dt, double tau,
-                                const In<3> &gravity) {
+                                const In<3> &gravity, std::optional<In<-1, 2>> damping) {
     const size_t n = after.shape(0);
     const std::vector<int64_t> mode = int_list(modes);
     if (mode.size() != n) throw nb::value_error("twists_at: one mode per row");
+    if (damping && damping->shape(0) != n) throw nb::value_error("twists_at: one damping row per row");
     auto [out, owner] = new_buffer<double>(6 * n);
     for (size_t i = 0; i < n; ++i)
-        velocity_at(after.data() + 6 * i, nullptr, int(mode[i]), dt, tau, gravity.data(), out + 6 * i);
+        velocity_at(after.data() + 6 * i, nullptr, int(mode[i]), dt, tau, gravity.data(),
+                    damping ? damping->data() + 2 * i : nullptr, out + 6 * i);
     return Out<double, -1, 6>(out, {n, 6}, owner);
 }
 
 // (v (n, 3), w (n, 3), [still]) of Sweeper::velocities_at; frames and modes are lists,
-// twist0 an (n_frames, 6) array or None, gravity (3,).
+// twist0 an (n_frames, 6) array or None, gravity (3,), damping an (n_frames, 2) array or None.
 nb::tuple sweeper_velocities_at(const Sweeper &s, double dt, double tau, nb::handle frames, nb::handle modes,
-                                std::optional<In<-1, 6>> twist0, const In<3> &gravity) {
+                                std::optional<In<-1, 6>> twist0, const In<3> &gravity,
+                                std::optional<In<-1, 2>> damping) {
     const std::vector<int64_t> ids = int_list(frames), kinds = int_list(modes);
     const size_t n = ids.size();
     if (kinds.size() != n) throw nb::value_error("velocities_at: one mode per frame");
     if (twist0 && twist0->shape(0) != s.n_frames()) throw nb::value_error("velocities_at: twist0 is not one row per frame");
+    if (damping && damping->shape(0) != s.n_frames())
+        throw nb::value_error("velocities_at: damping is not one row per frame");
     const std::vector<int8_t> mode(kinds.begin(), kinds.end());
     auto [v, v_owner] = new_buffer<double>(3 * n);
     auto [w, w_owner] = new_buffer<double>(3 * n);
     std::vector<uint8_t> still(n);
-    s.velocities_at(dt, tau, ids.data(), mode.data(), n, twist0 ? twist0->data() : nullptr, gravity.data(), v, w,
-                    still.data());
+    s.velocities_at(dt, tau, ids.data(), mode.data(), n, twist0 ? twist0->data() : nullptr, gravity.data(),
+                    damping ? damping->data() : nullptr, v, w, still.data());
     nb::list rest;
     for (uint8_t x : still) rest.append(bool(x));
     return nb::make_tuple(Out<double, -1, 3>(v, {n, 3}, v_owner), Out<double, -1, 3>(w, {n, 3}, w_owner), rest);
@@ -285,9 +290,10 @@ void bind_world(nb::module_ &m) {
           nb::arg("box_frame"), nb::arg("X_CS"), nb::arg("half"));
     m.def("frame_poses", &py_frame_poses, nb::arg("state"), nb::arg("dt"), nb::arg("frames"), nb::arg("taus"));
     m.def("twists_at", &py_twists_at, nb::arg("after"), nb::arg("modes"), nb::arg("dt"), nb::arg("tau"),
-          nb::arg("gravity"),
+          nb::arg("gravity"), nb::arg("damping").none() = nb::none(),
           "(n, 6) the velocities frames leave step fraction tau with when the world is taken back there, from "
-          "those after the step (mode 0: a fixed base moved by its velocity; 2: less the rest's gravity).");
+          "those after the step (mode 0: a fixed base moved by its velocity; 2: less the rest's gravity and, "
+          "given damping (n, 2: linear, angular), the rest's damping).");
     m.def("candidate_pairs", &py_candidate_pairs, nb::arg("bounds"), nb::arg("n_fast"), nb::arg("frame"),
           nb::arg("frame_body"), nb::arg("self_collides"), nb::arg("group"), nb::arg("mask"), nb::arg("filter_mode"));
     m.def("first_touches", &py_first_touches, nb::arg("rows"), nb::arg("pairs"), nb::arg("fit_tolerance"),
@@ -316,7 +322,7 @@ void bind_world(nb::module_ &m) {
         .def("slack", &Sweeper::slack, nb::arg("dt"),
              "The farthest a box with a finite sweep reach moves in a step of dt (m).")
         .def("velocities_at", &sweeper_velocities_at, nb::arg("dt"), nb::arg("tau"), nb::arg("frames"),
-             nb::arg("modes"), nb::arg("twist0").none(), nb::arg("gravity"))
+             nb::arg("modes"), nb::arg("twist0").none(), nb::arg("gravity"), nb::arg("damping").none() = nb::none())
         .def("rows", &sweeper_rows, nb::arg("dt"), nb::arg("boxes"))
         .def("touches", &sweeper_touches, nb::arg("dt"), nb::arg("boxes"), nb::arg("n_moving"),
              nb::arg("all_others"), nb::arg("fit_tolerance"), nb::arg("tolerances"), nb::arg("penetration"),

@@ -223,15 +223,27 @@ void fixed_base_velocity_before(const double *v_end, const double *w, double h, 
     for (int i = 0; i < 3; ++i) v[i] = (v_end[i] - h * wv[i] + h * h * along * w[i]) * scale;
 }
 
+void undamped_velocity(const double *b, double d, double h, double *x) {
+    // x = alpha b: alpha (1 - k (1 + alpha |b|)) = 1 with k = h d, the root near 1.
+    const double k = h * d, n = std::sqrt(b[0] * b[0] + b[1] * b[1] + b[2] * b[2]);
+    const double a = 1.0 - k, alpha = 2.0 / (a + std::sqrt(std::fmax(a * a - 4.0 * k * n, 0.0)));
+    for (int i = 0; i < 3; ++i) x[i] = alpha * b[i];
+}
+
 void velocity_at(const double *after, const double *before, int mode, double dt, double tau, const double *gravity,
-                 double *out) {
+                 const double *damping, double *out) {
     std::copy(after, after + 6, out);
+    const double rest = (1.0 - tau) * dt;
     if (mode == 0) {
-        fixed_base_velocity_before(after, after + 3, (1.0 - tau) * dt, out);
+        fixed_base_velocity_before(after, after + 3, rest, out);
     } else if (mode == 1 && before) {
         for (int i = 0; i < 6; ++i) out[i] = before[i] + tau * (after[i] - before[i]);
     } else {
-        for (int i = 0; i < 3; ++i) out[i] -= gravity[i] * (1.0 - tau) * dt;
+        for (int i = 0; i < 3; ++i) out[i] -= gravity[i] * rest;
+        if (damping) {
+            undamped_velocity(out, damping[0], rest, out);
+            undamped_velocity(out + 3, damping[1], rest, out + 3);
+        }
     }
 }
 

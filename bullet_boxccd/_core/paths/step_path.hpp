@@ -73,15 +73,23 @@ void frame_pose(const double *state, double dt, double tau, double *pose);
 // a step of h at v_end: (I + h [w x])^-1 v_end.
 void fixed_base_velocity_before(const double *v_end, const double *w, double h, double *v);
 
+// Bullet's damping of a multibody's base (btMultiBody: a unit mass's acceleration
+// -d (1 + |x|) x, on the velocity x the step starts from; measured on pybullet 3.2.7 to
+// 1e-10): the velocity x that a step of h with damping coefficient d ends at b, net of
+// every other acceleration, x (1 - h d (1 + |x|)) = b. x may alias b.
+void undamped_velocity(const double *b, double d, double h, double *x);
+
 // The velocities (v, w: 6) a frame leaves step fraction tau of a step of dt with when the
 // world is taken back there, so that the rest of the step simulated again ends as the
 // step did, from its velocities after the step (`after`: v, w) and, if known, before it
 // (`before`, or null). mode 0: a fixed base moved by its velocity (the linear one as
 // fixed_base_velocity_before gives it over the rest); 1: between before and after, in
-// proportion (2 without before); 2: after, less the rest of the step's gravity (a body
-// struck as the step began, or one whose velocities before are not known).
+// proportion (2 without before); 2: after, less the rest of the step's gravity and of its
+// damping (`damping`: linear and angular coefficients, or null for none) (a body struck
+// as the step began, or one whose velocities before are not known: in free flight the
+// rest of the step then ends exactly where the step ended).
 void velocity_at(const double *after, const double *before, int mode, double dt, double tau, const double *gravity,
-                 double *out);
+                 const double *damping, double *out);
 
 // Separating-axis overlap depth of two boxes at poses X_WA, X_WB (4x4 row-major)
 // with half extents ha, hb: > 0 overlapping by that much, <= 0 apart (the gap,

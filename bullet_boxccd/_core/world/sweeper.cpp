@@ -195,7 +195,8 @@ double Sweeper::slack(double dt) const {
 }
 
 void Sweeper::velocities_at(double dt, double tau, const int64_t *frames, const int8_t *mode, size_t n,
-                            const double *twist0, const double *gravity, double *v, double *w, uint8_t *still) const {
+                            const double *twist0, const double *gravity, const double *damping, double *v,
+                            double *w, uint8_t *still) const {
     for (size_t k = 0; k < n; ++k) {
         check_index(frames[k], n_frames(), "frame");
         const double *after = state_.data() + kFrameStateSize * frames[k] + FrameState::kVelocity;  // v, w
@@ -204,7 +205,7 @@ void Sweeper::velocities_at(double dt, double tau, const int64_t *frames, const 
         for (int i = 0; i < 6; ++i) rest = rest && after[i] == 0.0 && before[i] == 0.0;
         still[k] = rest;
         double out[6];
-        velocity_at(after, before, mode[k], dt, tau, gravity, out);
+        velocity_at(after, before, mode[k], dt, tau, gravity, damping ? damping + 2 * frames[k] : nullptr, out);
         std::copy(out, out + 3, v + 3 * k);
         std::copy(out + 3, out + 6, w + 3 * k);
     }

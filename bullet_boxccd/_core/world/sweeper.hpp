@@ -114,11 +114,13 @@ class Sweeper {
 
     // The velocities the n frames (checked) leave step fraction tau of a step of dt
     // with when the world is taken back there: velocity_at (step_path.hpp) with mode[k],
-    // twist0 (n_frames x 6: the velocities the step began with, or null) and gravity.
+    // twist0 (n_frames x 6: the velocities the step began with, or null), gravity and
+    // damping (n_frames x 2: each frame's linear and angular damping, or null).
     // still[k]: the frame was at rest before and after the step (only known with
     // twist0). v, w: (n, 3) each.
     void velocities_at(double dt, double tau, const int64_t *frames, const int8_t *mode, size_t n,
-                       const double *twist0, const double *gravity, double *v, double *w, uint8_t *still) const;
+                       const double *twist0, const double *gravity, const double *damping, double *v, double *w,
+                       uint8_t *still) const;
 
     // Throws std::out_of_range for a box index out of range.
     void check_boxes(const std::vector<int64_t> &boxes) const;
