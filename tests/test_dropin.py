@@ -443,19 +443,22 @@ def test_boxes_made_in_one_batch_are_all_swept(cid):
     assert batch_scene(cid, True, 0.5) == batch_scene(cid, False, 0.5)  # slow: bit for bit as plain pybullet
 
 
-def lift_scene(cid, use):
-    """A mass-0 platform lifting a resting cube by the velocity the user gives it at every
-    step, the first time before BoxCCD is made; a body added halfway (the world is read
-    again then)."""
+def platform_scene(cid, use, move, late=False):
+    """A mass-0 platform 4 cm thick under a resting cube, moved by ``move(platform, k)``
+    before every step k. ``late``: BoxCCD is made after the first move, and a body is
+    added halfway (the world is read again then)."""
     reset(cid, gravity=-9.81)
     lift = box(cid, [0.5, 0.5, 0.02], [0, 0, 0.5], mass=0.0)
     cube = box(cid, [0.05] * 3, [0, 0, 0.57])
     ccd, out = None, []
     for k in range(24):
-        p.resetBaseVelocity(lift, [0, 0, 0.5], [0, 0, 0], physicsClientId=cid)
-        if k == 12:
+        if use and not late and ccd is None:
+            ccd = BoxCCD(cid)
+        move(lift, k)
+        if late and k == 12:
             box(cid, [0.05] * 3, [3, 0, 0.05])
-        ccd = ccd or (BoxCCD(cid) if use else None)
+        if use and ccd is None:
+            ccd = BoxCCD(cid)
         ccd.step() if ccd else p.stepSimulation(physicsClientId=cid)
         out.append(p.getBasePositionAndOrientation(cube, physicsClientId=cid) +
                    p.getBaseVelocity(cube, physicsClientId=cid))
@@ -463,26 +466,19 @@ def lift_scene(cid, use):
 
 
 def test_a_platform_given_a_velocity_before_boxccd_was_made_lifts_as_in_plain_pybullet(cid):
-    assert lift_scene(cid, True) == lift_scene(cid, False)
+    def lift(b, k):
+        p.resetBaseVelocity(b, [0, 0, 0.5], [0, 0, 0], physicsClientId=cid)
 
-
-def small_teleport_scene(cid, use):
-    """A mass-0 platform 4 cm thick teleported up 2 mm a step under a resting cube: less
-    than a free box may move unswept in a step (a quarter of its thinnest extent, 1 cm)."""
-    reset(cid, gravity=-9.81)
-    lift = box(cid, [0.5, 0.5, 0.02], [0, 0, 0.5], mass=0.0)
-    cube = box(cid, [0.05] * 3, [0, 0, 0.57])
-    ccd, out = BoxCCD(cid) if use else None, []
-    for k in range(24):
-        p.resetBasePositionAndOrientation(lift, [0, 0, 0.5 + 0.002 * (k + 1)], [0, 0, 0, 1], physicsClientId=cid)
-        ccd.step() if ccd else p.stepSimulation(physicsClientId=cid)
-        out.append(p.getBasePositionAndOrientation(cube, physicsClientId=cid) +
-                   p.getBaseVelocity(cube, physicsClientId=cid))
-    return out
+    assert platform_scene(cid, True, lift, late=True) == platform_scene(cid, False, lift, late=True)
 
 
 def test_a_teleport_shorter_than_a_free_box_moves_unswept_is_left_to_pybullet(cid):
-    assert small_teleport_scene(cid, True) == small_teleport_scene(cid, False)
+    """2 mm a step: less than a free box may move unswept (a quarter of its thinnest
+    extent, 1 cm)."""
+    def lift(b, k):
+        p.resetBasePositionAndOrientation(b, [0, 0, 0.5 + 0.002 * (k + 1)], [0, 0, 0, 1], physicsClientId=cid)
+
+    assert platform_scene(cid, True, lift) == platform_scene(cid, False, lift)
 
 
 def test_body_made_dynamic_with_change_dynamics_is_swept(cid):
