@@ -481,6 +481,27 @@ def test_a_teleport_shorter_than_a_free_box_moves_unswept_is_left_to_pybullet(ci
     assert platform_scene(cid, True, lift) == platform_scene(cid, False, lift)
 
 
+def test_a_shape_left_to_pybullet_is_named_once_a_fast_box_comes_near_it(cid):
+    """BoxCCD sweeps boxes against boxes: a thin static cylinder in a fast box's way is
+    named (once), a sphere and a plane out of its reach are not, nor is anything while the
+    box is slow."""
+    for speed, named in ((0.5, []), (100.0, ["body 0 link -1 (cylinder)"])):
+        reset(cid)
+        p.createMultiBody(0, p.createCollisionShape(p.GEOM_CYLINDER, radius=1.0, height=0.01, physicsClientId=cid),
+                          baseOrientation=p.getQuaternionFromEuler([0, np.pi / 2, 0]), physicsClientId=cid)
+        p.createMultiBody(0, p.createCollisionShape(p.GEOM_SPHERE, radius=0.5, physicsClientId=cid),
+                          basePosition=[0, 10, 0], physicsClientId=cid)
+        p.createMultiBody(0, p.createCollisionShape(p.GEOM_PLANE, physicsClientId=cid), basePosition=[0, 0, -5],
+                          physicsClientId=cid)
+        cube = box(cid, [0.05] * 3, [-1, 0, 0])
+        throw(cid, cube, speed=speed, spin=(0, 0, 0))
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            run(cid, True, 10)
+        messages = [str(w.message) for w in caught if issubclass(w.category, BoxCCDWarning)]
+        assert [m.split(" is in the reach")[0] for m in messages] == named, messages
+
+
 def test_body_made_dynamic_with_change_dynamics_is_swept(cid):
     through = {False: 0, True: 0}
     for use in (False, True):

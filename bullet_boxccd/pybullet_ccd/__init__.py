@@ -163,6 +163,7 @@ class BoxCCD:
             self._others = Others(self.cid, self.world.journal, t.other_rigid, t.other_chains, t.other_fixed,
                                   t.other_stuck, self._warn, self.world.maximal)
             self._watched = bool(self._state.moving) or bool(self._chains.watched)
+            self._unswept = {k: v for k, v in t.unswept.items() if ("unswept", *k) not in self._warned}
             self._known = False
             self.stats.tracked_boxes = len(t.half)
             small = t.half.min() if len(t.half) else math.inf
@@ -256,7 +257,8 @@ class BoxCCD:
                 # the step unless it finds a contact.
                 st.begin_kinematic((), ())
                 sw = sweep(cid, self.world.tables, st, self._dt, self.fit_tolerance, self.tolerances,
-                           self.penetration, self.stats, time.perf_counter(), fast, self._at_clamp)
+                           self.penetration, self.stats, time.perf_counter(), fast, self._at_clamp,
+                           self._near_unswept if self._unswept else None)
                 if sw is None:
                     return []
             events = self._step(self._dt, 0.0, self._dt, struck, stepped=True, fast=fast, sw=sw)
@@ -412,7 +414,7 @@ class BoxCCD:
         st.end_kinematic(h)
         if sw is None and not (stepped and fast is None):
             sw = sweep(self.cid, t, st, h, self.fit_tolerance, self.tolerances, self.penetration, self.stats, t0, fast,
-                       self._at_clamp)
+                       self._at_clamp, self._near_unswept if self._unswept else None)
         jw = jump_sweep(self.cid, t, st, h, self.fit_tolerance, self.tolerances, self.penetration, self.stats)
         found = self._chains_find(h)
         if sw is None and jw is None and not found:
@@ -456,6 +458,15 @@ class BoxCCD:
         self.stats.seconds["rewind"] += time.perf_counter() - t3
         self.stats.contacts += len(events)
         return sorted(events, key=lambda e: e.tau), tau
+
+    def _near_unswept(self, keys):
+        """Shapes left to pybullet that a fast box came near: named once each."""
+        for key in keys:
+            if key in self._unswept:
+                b, link = key
+                self._warn(("unswept", b, link), f"body {b} link {link} ({self._unswept.pop(key)}) is in the "
+                                                  "reach of a fast box: BoxCCD sweeps boxes against boxes only, so "
+                                                  "pybullet alone meets that contact and the box can pass through it")
 
     def _at_clamp(self, frames):
         """Fast frames moving or turning at exactly pybullet's default velocity clamp, of bodies

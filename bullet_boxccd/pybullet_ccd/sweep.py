@@ -63,11 +63,14 @@ class Sweep:
 _READS_PER_QUERY = 4
 
 
-def sweep(cid, tables, state, dt, fit_tolerance, tolerances, penetration, stats, t0, fast=None, at_clamp=None):
+def sweep(cid, tables, state, dt, fit_tolerance, tolerances, penetration, stats, t0, fast=None, at_clamp=None,
+          near_unswept=None):
     """Sweep the step just taken (``state`` holds the velocities of the moving frames and
     the kinematic frames' poses; ``fast`` what ``state.sweeper.fast`` found, if it was
     asked already). Returns a Sweep, or None if nothing touched. ``at_clamp`` is told the
-    fast frames whose speed or spin is pybullet's default velocity clamp."""
+    fast frames whose speed or spin is pybullet's default velocity clamp; ``near_unswept``
+    the shapes left to pybullet (``tables.unswept``) that pybullet's broad phase finds
+    within the fast boxes' reach."""
     sweeper = state.sweeper
     if fast is None:
         fast = sweeper.fast(dt)
@@ -81,6 +84,12 @@ def sweep(cid, tables, state, dt, fit_tolerance, tolerances, penetration, stats,
             at_clamp(clamped)  # it checks the body's own clamp
     state.read_poses(state.stale(fast_frames))
     stats.swept_boxes += len(fast)
+    if tables.unswept and near_unswept is not None:
+        bounds = sweeper.rows(dt, fast)[1]
+        reach = bounds[:, :3].min(axis=0).tolist() + bounds[:, 3:].max(axis=0).tolist()
+        near = [key for key in overlap_query(cid, reach, slack) if tuple(key) in tables.unswept]
+        if near:
+            near_unswept([tuple(key) for key in near])
     t1 = time.perf_counter()
     stats.seconds["state"] += t1 - t0
     boxes, all_others = fast, False

@@ -92,6 +92,9 @@ class Tables:
     frames_of: dict  # body -> its frames
     filters: Filters
     free_frames: list  # the free bodies' frames
+    # (body, link) -> what: the shapes left to pybullet that a fast box can pass through
+    # (all but planes, which are half-spaces, and soft bodies)
+    unswept: dict
     damping: np.ndarray  # (F, 2): its body's linear and angular damping, as Bullet damps a free base
     # Bodies with no frame here (others.py): free single ones, articulated ones, fixed bases
     # with no links, and {body: why} those whose state pybullet does not give.
@@ -390,6 +393,8 @@ class World:
             radius=np.linalg.norm(X_CS[:, :3, 3], axis=1) + np.linalg.norm(half, axis=1),
             frame_boxes=frame_boxes, frames_of=frames_of, filters=Filters(keys, defaults, fgm, self.journal),
             free_frames=np.flatnonzero(kind == FREE).tolist(),
+            unswept={(b, link): what for b in ids for link, what in self._bodies[b].left
+                     if what not in ("plane", "soft body")},
             damping=np.array([damping(self.journal, b, self._bodies[b].maximal) for b, _ in keys],
                              dtype=np.float64).reshape(-1, 2),
             other_rigid=rigid, other_chains=chains, other_fixed=fixed, other_stuck=stuck)
