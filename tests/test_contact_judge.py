@@ -109,21 +109,24 @@ def test_a_link_box_through_a_wall_goes_wrong_from_its_first_depth():
     assert act == pytest.approx(0.39 + PENETRATION, abs=1e-9)
 
 
-@pytest.mark.parametrize("end", [-0.105, -0.06])
+@pytest.mark.parametrize("end", [-0.105, -0.1015])
 def test_a_link_box_ending_deep_on_its_own_side_is_pybullets(end):
-    """Ending 5 mm or 5 cm into the wall from the side it came from, short of the middle of
-    the pair's reach: a link's contact that ends merely deep is pybullet's (its motors
-    press links into what they touch), unlike a free body's (wrong past 1 mm)."""
+    """Ending 5 mm or 8.5 mm into the 2 cm wall from the side it came from, short of the
+    wall's middle: a link's contact that ends merely deep is pybullet's (its motors press
+    links into what they touch), unlike a free body's (wrong past 1 mm)."""
     touch, act, c, *_ = judge_link(rows(WALL, (0, 0), CUBE, (-0.5, end)))
     assert c is not None and touch == pytest.approx(0.39 / (end + 0.5) * 1.0, rel=1e-5) and np.isnan(act)
     assert judge(rows(WALL, (0, 0), CUBE, (-0.5, end)))[1]
 
 
-def test_a_link_box_past_the_middle_of_the_wall_goes_wrong():
-    """Ending with its centre 1 mm short of the wall's centre (past the middle of the
-    pair's 0.11 m reach): pybullet would push it out the far side."""
-    touch, act, c, *_ = judge_link(rows(WALL, (0, 0), CUBE, (-0.5, -0.001)))
-    assert c is not None and act == pytest.approx((0.39 + PENETRATION) / 0.499, abs=1e-9)
+@pytest.mark.parametrize("end", [-0.0985, -0.06, -0.001])
+def test_a_link_box_past_the_middle_of_the_wall_goes_wrong(end):
+    """Ending 1.5 mm past the 2 cm wall's middle, 3 cm past its far face, or with its centre
+    1 mm short of the wall's: the boxes overlap along the normal by more than half the
+    thinner one (the wall), so the nearest way out is through, and pybullet would resolve
+    the pair from that overlap, not from the strike: acted on from the first depth."""
+    touch, act, c, *_ = judge_link(rows(WALL, (0, 0), CUBE, (-0.5, end)))
+    assert c is not None and act == pytest.approx((0.39 + PENETRATION) / (end + 0.5), abs=1e-9)
 
 
 @pytest.mark.parametrize("end, wrong", [(0.2, True), (-0.05, True), (-0.1098, False), (-0.3, False)])

@@ -94,10 +94,11 @@ namespace {
 // Whether pybullet resolves a link pair wrongly from the step's end (the boxes at Xa, Xb
 // there, their depth1 along axis1), once it overlapped by the target at s_act. With n the
 // least-overlap axis then (from A towards B): overlapping at the end, the least overlap
-// pointing back out of the far side, or B's centre short of the middle of the pair's reach
-// along n; apart at the end, B's centre on A's far side along n (it went through). A pair
-// that parted on the side it came from, or sideways (a strike, a link sweeping along a
-// face), is pybullet's to resolve.
+// pointing back out of the far side, or the boxes overlapping along n by more than half
+// the thinner of them along n (one has gone past the other's middle: its nearest way out
+// is through); apart at the end, B's centre on A's far side along n (it went through). A
+// pair that parted on the side it came from, or sideways (a strike, a link sweeping along
+// a face), is pybullet's to resolve.
 bool link_goes_wrong(const BoxPath &a, const BoxPath &b, double s_act, const double *Xa, const double *Xb,
                      double depth1, const Vec3 &axis1) {
     Vec3 n;
@@ -105,8 +106,8 @@ bool link_goes_wrong(const BoxPath &a, const BoxPath &b, double s_act, const dou
     const Vec3 ab{Xb[3] - Xa[3], Xb[7] - Xa[7], Xb[11] - Xa[11]};
     const double along = dot3(ab, n);
     if (depth1 <= 0.0) return along < 0.0;
-    const double reach = half_width(Xa, a.half_extents(), n) + half_width(Xb, b.half_extents(), n);
-    return dot3(axis1, n) < 0.0 || along < 0.5 * reach;
+    const double wa = half_width(Xa, a.half_extents(), n), wb = half_width(Xb, b.half_extents(), n);
+    return dot3(axis1, n) < 0.0 || wa + wb - along > std::min(wa, wb);
 }
 
 }  // namespace
