@@ -5,12 +5,15 @@ Each scene runs with plain pybullet in the same test: the plain run must go wron
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 import pybullet as p
 import pytest
 
 import bullet_boxccd  # noqa: F401  (imported before the worlds are built: it sees their flags)
 from bullet_boxccd import BoxCCD
+from bullet_boxccd.pybullet_ccd import BoxCCDWarning
 
 PENETRATION = 1e-5  # BoxCCD's default rewind depth
 
@@ -63,6 +66,28 @@ def _swing(cid, use_ccd, seed, omega, plate=0.002, margin=None, ccd_kw=None):
         if p.getJointState(arm, 0, physicsClientId=cid)[0] > 0.3:
             return True, gaps
     return False, gaps
+
+
+@pytest.mark.parametrize("clamp", [None, 1000.0])
+def test_a_joint_at_pybullets_velocity_clamp_is_named_once(cid, clamp):
+    """A bar spun at 150 rad/s past a plate: pybullet cuts its joint velocity to its default
+    clamp of 100, and BoxCCD names the joint once; with the clamp lifted, nothing is named."""
+    _world(cid)
+    arm = _arm(cid)
+    p.changeDynamics(arm, 0, maxJointVelocity=clamp or 100.0, physicsClientId=cid)
+    shape = p.createCollisionShape(p.GEOM_BOX, halfExtents=[0.1, 0.001, 0.2], physicsClientId=cid)
+    p.createMultiBody(0, shape, basePosition=[0.45, 0, 0], physicsClientId=cid)
+    p.resetJointState(arm, 0, -np.pi / 2, 150.0, physicsClientId=cid)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        ccd = BoxCCD(cid)
+        for _ in range(12):
+            ccd.step()
+    named = [str(w.message) for w in caught if issubclass(w.category, BoxCCDWarning)]
+    if clamp is None:
+        assert len(named) == 1 and named[0].startswith(f"body {arm} joint 0 moves at 100"), named
+    else:
+        assert not named, named
 
 
 @pytest.mark.parametrize("omega", [20.0, 50.0])

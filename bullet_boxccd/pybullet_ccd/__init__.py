@@ -156,7 +156,8 @@ class BoxCCD:
             self.stats.rediscoveries += 1
             t = self.world.tables
             self._sweep_reach = np.minimum(self.sweep_threshold * 2.0 * t.half.min(axis=1), self.sweep_distance)
-            self._chains = Articulated(self.cid, t, self.world.self_collision(), self._sweep_reach, self._warn)
+            self._chains = Articulated(self.cid, t, self.world.self_collision(), self._sweep_reach, self._warn,
+                                       self.world.journal.max_velocity)
             rigid_reach = self._sweep_reach.copy()
             rigid_reach[self._chains.boxes] = math.inf  # swept on their own paths (articulated)
             self._state = FrameState(self.cid, t, rigid_reach, self._chains.frames)

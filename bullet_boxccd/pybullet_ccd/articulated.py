@@ -38,7 +38,7 @@ import pybullet
 from .. import _core
 from ..motion import pose7, pose_matrix
 from ..solver import Outcome
-from ._hooks import raw
+from ._hooks import MAX_VELOCITY, raw
 from .chain import read_chain
 from .contacts import bounce, place
 from .events import CCDEvent
@@ -78,10 +78,12 @@ class _Body:
 class Articulated:
     """The articulated bodies of a world (see the module docstring)."""
 
-    def __init__(self, cid, tables, self_collision, sweep_reach, warn):
+    def __init__(self, cid, tables, self_collision, sweep_reach, warn, max_velocity):
         """``self_collision``: {body: URDF_USE_SELF_COLLISION* bits} of the bodies whose links
-        collide with each other; ``sweep_reach``: (boxes,) a box moving farther in a step is swept."""
+        collide with each other; ``sweep_reach``: (boxes,) a box moving farther in a step is swept;
+        ``max_velocity``: {body: maxJointVelocity the user set} (the journal's)."""
         self.cid, self.tables, self.sweep_reach = cid, tables, sweep_reach
+        self._warn, self._max_velocity = warn, max_velocity
         self._link_ok = {}  # (box, box) of articulated bodies -> whether pybullet collides them
         self.bodies = {}
         for b, frames in tables.frames_of.items():
@@ -176,10 +178,23 @@ class Articulated:
             # A fixed joint has no coordinates: the moving joints' are the flat q and qdot.
             q = np.array([x for s in js for x in s[0]], dtype=np.float64)
             rec.qdot = np.array([x for s in js for x in s[1]], dtype=np.float64)
+            if self._max_velocity.get(rec.body, MAX_VELOCITY) == MAX_VELOCITY and np.any(np.abs(rec.qdot) ==
+                                                                                     MAX_VELOCITY):
+                self._at_clamp(rec)
             rec.motion = _core.ChainMotion(rec.chain.core, rec.base_state, q, rec.qdot, dt)
             rec.paths = {}
             state.rows[rec.frame_index] = rec.motion.frame_rows(rec.link_of_frame)
             state.fresh.update(rec.frames)
+
+    def _at_clamp(self, rec):
+        """Name the joints of a body moving at pybullet's default velocity clamp."""
+        moving, _, spans = rec.layout
+        joints = [j for j, (a, b) in zip(moving, spans) if np.any(np.abs(rec.qdot[a:b]) == MAX_VELOCITY)]
+        self._warn(("joint clamp", rec.body), f"body {rec.body} joint{'s' if len(joints) > 1 else ''} "
+                                              f"{', '.join(map(str, joints))} move{'' if len(joints) > 1 else 's'} at "
+                                              f"{MAX_VELOCITY:g} (rad/s, m/s), pybullet's default joint velocity "
+                                              "clamp: if given more, pybullet cut it to that "
+                                              f"(p.changeDynamics({rec.body}, -1, maxJointVelocity=...) lifts it)")
 
     def _path(self, rec, box, dt):
         path = rec.paths.get(box)
