@@ -105,8 +105,10 @@ class Journal:
     filters_unknown: dict = field(default_factory=dict)  # body -> why its file's groups could not be read
     filter_mode: int = OR_MODE
     filters: int = 0
-    # Teleports: body -> serial of the user's latest pose reset (base or joints).
+    # Teleports: body -> serial of the user's latest pose reset (base or joints), and of
+    # its latest base pose reset alone.
     moved: dict = field(default_factory=dict)
+    base_moved: dict = field(default_factory=dict)
     velocity_set: dict = field(default_factory=dict)  # body -> serial of the user's latest resetBaseVelocity
     restored: int = 0  # restoreState: every body jumped
     last_move: int = 0  # the latest of the three above
@@ -577,6 +579,12 @@ def _moved(cid, a, result):
     j.moved[int(a["bodyUniqueId"])] = j.last_move = next(_serial)
 
 
+def _base_moved(cid, a, result):
+    _moved(cid, a, result)
+    j = journal(cid)
+    j.base_moved[int(a["bodyUniqueId"])] = j.last_move
+
+
 def _reset_base_velocity(cid, a, result):
     j = journal(cid)
     j.velocity_set[int(a["objectUniqueId"])] = j.last_move = next(_serial)
@@ -737,7 +745,7 @@ WRAPPED = {
     "setDefaultContactERP": _set_contact_erp,
     "setTimeStep": _set_params,
     "setGravity": _set_params,
-    "resetBasePositionAndOrientation": _moved,
+    "resetBasePositionAndOrientation": _base_moved,
     "resetBaseVelocity": _reset_base_velocity,
     "resetJointState": _moved,
     "resetJointStateMultiDof": _moved,
