@@ -162,7 +162,7 @@ class BoxCCD:
             rigid_reach[self._chains.boxes] = math.inf  # swept on their own paths (articulated)
             self._state = FrameState(self.cid, t, rigid_reach, self._chains.frames)
             self._others = Others(self.cid, self.world.journal, t.other_rigid, t.other_chains, t.other_fixed,
-                                  t.other_stuck, self._warn, self.world.maximal)
+                                  t.other_stuck, self._warn, self.world.damping)
             self._watched = bool(self._state.moving) or bool(self._chains.watched)
             self._unswept = {k: v for k, v in t.unswept.items() if ("unswept", *k) not in self._warned}
             self._known = False
@@ -465,11 +465,12 @@ class BoxCCD:
     def _near_unswept(self, keys):
         """Shapes left to pybullet that a fast box came near: named once each."""
         for key in keys:
-            if key in self._unswept:
+            what = self._unswept.pop(key, None)
+            if what is not None:
                 b, link = key
-                self._warn(("unswept", b, link), f"body {b} link {link} ({self._unswept.pop(key)}) is in the "
-                                                  "reach of a fast box: BoxCCD sweeps boxes against boxes only, so "
-                                                  "pybullet alone meets that contact and the box can pass through it")
+                self._warn(("unswept", b, link), f"body {b} link {link} ({what}) is in the reach of a fast box: "
+                                                  "BoxCCD sweeps boxes against boxes only, so pybullet alone meets "
+                                                  "that contact and the box can pass through it")
 
     def _at_clamp(self, frames):
         """Fast frames moving or turning at exactly pybullet's default velocity clamp, of bodies

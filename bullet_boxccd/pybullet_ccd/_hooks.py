@@ -501,11 +501,13 @@ def _load_soft_body(cid, a, result):
 def _change_dynamics(cid, a, result):
     if a.get("maxJointVelocity") is not None:
         journal(cid).max_velocity[int(a["bodyUniqueId"])] = float(a["maxJointVelocity"])
-    for k, name in enumerate(("linearDamping", "angularDamping")):
-        if a.get(name) is not None and float(a[name]) >= 0.0:  # pybullet ignores a negative one
-            # (the body's frames are read again: their damping is in the plugin's tables)
-            _structure(cid, a["bodyUniqueId"]).damping.setdefault(int(a["bodyUniqueId"]), list(DAMPING))[k] = \
-                float(a[name])
+    given = {k: float(a[name]) for k, name in enumerate(("linearDamping", "angularDamping"))
+             if a.get(name) is not None and float(a[name]) >= 0.0}  # pybullet ignores a negative one
+    if given:
+        b = int(a["bodyUniqueId"])
+        damping = _structure(cid, b).damping.setdefault(b, list(DAMPING))  # (read again: it is in the tables)
+        for k, x in given.items():
+            damping[k] = x
     if "mass" in a:  # a mass change may switch a base between fixed and free
         b = int(a["bodyUniqueId"])
         j = _structure(cid, b)

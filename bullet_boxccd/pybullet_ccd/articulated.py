@@ -171,15 +171,14 @@ class Articulated:
             pos, orn = raw.getBasePositionAndOrientation(rec.body, physicsClientId=cid)
             v, w = raw.getBaseVelocity(rec.body, physicsClientId=cid)
             moving = rec.layout[0]
-            js = raw.getJointStatesMultiDof(rec.body, moving, physicsClientId=cid) if moving \
-                else ()
+            js = raw.getJointStatesMultiDof(rec.body, moving, physicsClientId=cid) if moving else ()
             rec.start = (rec.base_state[7:13], rec.qdot) if known and rec.base_state is not None else None
             rec.base_state = np.array([*pos, *orn, *v, *w], dtype=np.float64)
             # A fixed joint has no coordinates: the moving joints' are the flat q and qdot.
             q = np.array([x for s in js for x in s[0]], dtype=np.float64)
             rec.qdot = np.array([x for s in js for x in s[1]], dtype=np.float64)
-            if self._max_velocity.get(rec.body, MAX_VELOCITY) == MAX_VELOCITY and np.any(np.abs(rec.qdot) ==
-                                                                                     MAX_VELOCITY):
+            if np.any(np.abs(rec.qdot) == MAX_VELOCITY) and \
+                    self._max_velocity.get(rec.body, MAX_VELOCITY) == MAX_VELOCITY:
                 self._at_clamp(rec)
             rec.motion = _core.ChainMotion(rec.chain.core, rec.base_state, q, rec.qdot, dt)
             rec.paths = {}

@@ -26,7 +26,7 @@ import numpy as np
 import pybullet
 
 from .. import _core
-from ._hooks import damping, raw
+from ._hooks import raw
 from .chain import read_base_state, read_chain, read_joint_state
 
 __all__ = ["Others", "joint_layout", "put_body"]
@@ -60,9 +60,9 @@ class Others:
     (fixed bases with no links: they move only if the user gave them a velocity, which the
     journal knows); ``stuck``: {body: why it cannot go back}."""
 
-    def __init__(self, cid, journal, rigid, articulated, fixed, stuck, warn, maximal):
+    def __init__(self, cid, journal, rigid, articulated, fixed, stuck, warn, damping):
         self.cid, self.journal, self.rigid, self.fixed = cid, journal, list(rigid), list(fixed)
-        self._maximal = maximal  # body -> whether it is in maximal coordinates
+        self._damping = damping  # body -> (linear, angular) damping, as Bullet damps a free base
         self.stuck, self._warn = dict(stuck), warn
         self._unread, self.chains = list(articulated), {}  # chains: {body: (chain, joint layout, falls)}
 
@@ -92,7 +92,7 @@ class Others:
             bodies, rows, modes = zip(*states)
             rows = np.array(rows)
             poses = _core.frame_poses(rows, dt, np.arange(len(rows), dtype=np.int64), np.full(len(rows), tau))
-            damp = np.array([damping(self.journal, b, self._maximal(b)) for b in bodies], dtype=np.float64)
+            damp = np.array([self._damping(b) for b in bodies], dtype=np.float64)
             twists = _core.twists_at(rows[:, 7:13], list(modes), dt, tau, gravity, damp)
             for b, pose, twist in zip(bodies, poses.tolist(), twists.tolist()):
                 raw.resetBasePositionAndOrientation(b, pose[:3], pose[3:], physicsClientId=cid)

@@ -84,12 +84,13 @@ def sweep(cid, tables, state, dt, fit_tolerance, tolerances, penetration, stats,
             at_clamp(clamped)  # it checks the body's own clamp
     state.read_poses(state.stale(fast_frames))
     stats.swept_boxes += len(fast)
+    bounds = None  # the fast boxes' swept bounds, once asked for
     if tables.unswept and near_unswept is not None:
-        bounds = sweeper.rows(dt, fast)[1]
+        _, bounds = sweeper.rows(dt, fast)
         reach = bounds[:, :3].min(axis=0).tolist() + bounds[:, 3:].max(axis=0).tolist()
-        near = [key for key in overlap_query(cid, reach, slack) if tuple(key) in tables.unswept]
+        near = [key for key in map(tuple, overlap_query(cid, reach, slack)) if key in tables.unswept]
         if near:
-            near_unswept([tuple(key) for key in near])
+            near_unswept(near)
     t1 = time.perf_counter()
     stats.seconds["state"] += t1 - t0
     boxes, all_others = fast, False
@@ -101,7 +102,8 @@ def sweep(cid, tables, state, dt, fit_tolerance, tolerances, penetration, stats,
         # Only the partners pybullet's own broad phase finds near the fast boxes' swept
         # bounds (a slow body can be anywhere within its reach of the pose it knows, so
         # the query is widened by the largest such reach).
-        _, bounds = sweeper.rows(dt, fast)
+        if bounds is None:
+            _, bounds = sweeper.rows(dt, fast)
         partners = _partners(cid, tables, bounds, slack, fast_frames)
         state.read_poses(state.stale(partners))
         boxes = fast + [b for f in partners for b in tables.frame_boxes[f]]

@@ -137,8 +137,7 @@ class World:
         else:
             dirty = None  # read everything
         self._seen = max(j.reset, j.last_body, j.filters, self._seen)
-        self.count = count
-        ids = self._ids(count)
+        self.count, ids = self._ids(count)
         # A registration outlives no change of its body (a new body may reuse the id).
         self.registered = {k: v for k, v in self.registered.items()
                            if v[0] > max(j.reset, j.bodies.get(k[0], 0)) and k[0] in ids}
@@ -157,7 +156,7 @@ class World:
         return True
 
     def _ids(self, count):
-        """Every body's id. After ``createMultiBody(batchPositions=...)`` pybullet's client
+        """(body count, every body's id). After ``createMultiBody(batchPositions=...)`` pybullet's client
         lists only the last body of the batch (getNumBodies, getBodyUniqueId, getBodyInfo),
         though the server simulates them all: when a body the journal saw being made is
         missing from the list but alive, the client's list is brought up to date
@@ -170,9 +169,9 @@ class World:
             except pybullet.error:
                 continue
             raw.syncBodyInfo(physicsClientId=cid)
-            self.count = raw.getNumBodies(physicsClientId=cid)
-            return [raw.getBodyUniqueId(i, physicsClientId=cid) for i in range(self.count)]
-        return ids
+            count = raw.getNumBodies(physicsClientId=cid)
+            return count, [raw.getBodyUniqueId(i, physicsClientId=cid) for i in range(count)]
+        return count, ids
 
     def _warn_unseen(self, ids):
         unseen = [b for b in ids if b not in self.journal.created]
@@ -395,8 +394,7 @@ class World:
             free_frames=np.flatnonzero(kind == FREE).tolist(),
             unswept={(b, link): what for b in ids for link, what in self._bodies[b].left
                      if what not in ("plane", "soft body")},
-            damping=np.array([damping(self.journal, b, self._bodies[b].maximal) for b, _ in keys],
-                             dtype=np.float64).reshape(-1, 2),
+            damping=np.array([self.damping(b) for b, _ in keys], dtype=np.float64).reshape(-1, 2),
             other_rigid=rigid, other_chains=chains, other_fixed=fixed, other_stuck=stuck)
 
     # ---------------------------------------------------------------- summary
@@ -405,6 +403,10 @@ class World:
         is its multibodies')."""
         rec = self._bodies.get(b)
         return rec is not None and rec.maximal
+
+    def damping(self, b) -> tuple:
+        """(linear, angular) damping of body b as Bullet damps a free multibody base."""
+        return damping(self.journal, b, self.maximal(b))
 
     def summary(self) -> str:
         t = self.tables
