@@ -261,6 +261,42 @@ def table_measure(w, s):
                 through=bool(s.through or (c[2] < TABLE_MID and _over_top(c))))
 
 
+
+# ---------------------------------------------- 9. glancing impacts
+def glancing_build(w, rng, variant):
+    """A 0.1 m cube (mass 1, restitution 0.5, friction 0.5), not spinning, turned at random
+    about z and tipped up to 5 deg, at 50-200 m/s along +x and 5-15 deg below the
+    horizontal, at a static floor 1 cm thick (top z = 0, 100 x 10 m, restitution 1,
+    friction 1); its lowest point reaches the floor at (2 + U(0.05, 0.95)) steps. Figures
+    over the 0.1 s after: the rebound (the highest upward speed over the normal speed it
+    struck with) and the kinetic energy ratio."""
+    speed, frac, slope = rng.uniform(50.0, 200.0), rng.uniform(0.05, 0.95), math.radians(rng.uniform(5.0, 15.0))
+    orn = p.getQuaternionFromEuler([math.radians(rng.uniform(-5.0, 5.0)), math.radians(rng.uniform(-5.0, 5.0)),
+                                    rng.uniform(-math.pi, math.pi)])
+    floor = w.box((50.0, 5.0, 0.005), (30.0, 0.0, -0.005), 0.0, e=1.0, mu=1.0)
+    R = np.array(p.getMatrixFromQuaternion(orn)).reshape(3, 3)
+    low = float(np.sum(np.abs(R[2]) * 0.05))  # the centre's height over its lowest point
+    t_hit = (2.0 + frac) * w.dt
+    v = speed * np.array([math.cos(slope), 0.0, -math.sin(slope)])
+    pos = np.array([0.0, 0.0, low]) - v * t_hit + np.array([0.0, 0.0, 0.5 * G * t_hit ** 2])
+    cube = w.box((0.05,) * 3, pos, 1.0, orn, e=0.5, mu=0.5)
+    w.set_vel(cube, v)
+    s = SimpleNamespace(floor=floor, cube=cube, vn=speed * math.sin(slope) + G * t_hit, t_hit=t_hit, rise=0.0,
+                        through=False, steps=int(math.ceil((t_hit + 0.1) / w.dt)))
+    s.ke0 = w.energy(cube)
+    return s
+
+
+def glancing_observe(w, s, k):
+    z = w.pos(s.cube)[2]
+    s.through |= z < -0.01
+    if w.t > s.t_hit:
+        s.rise = max(s.rise, w.vel(s.cube)[0][2])
+
+
+def glancing_measure(w, s):
+    return dict(rebound=s.rise / s.vn, ke=w.energy(s.cube) / s.ke0, through=bool(s.through))
+
 # ----------------------------------------------------- 4. planks on tiles
 TILE, N_TILES = 0.5, 12  # a 12 x 12 floor of 0.5 m tiles (6 x 6 m), 2 cm thick, top at z = 0
 
@@ -670,4 +706,13 @@ FAMILIES = {f.key: f for f in [
             Figure("spread m (median)", _pct("spread", med), 0.5),
             Figure("tunneled", _count("tunneled"), 0.5)],
            Figure("|median KE ratio - ref|", _diff_median("ke"), 0.05, True), "|median KE ratio - ref's|"),
+    Family("glancing", "9 cube glancing off a 1 cm floor", 1 / 240, 256, 16, 6, ["-"],
+           glancing_build, glancing_observe, glancing_measure,
+           [Figure("rebound median", _pct("rebound", med), 0.05),
+            Figure("rebound q25", _pct("rebound", q25), 0.08),
+            Figure("rebound q75", _pct("rebound", q75), 0.08),
+            Figure("KE ratio median", _pct("ke", med), 0.05),
+            Figure("fell through", _count("through"), 0.5)],
+           Figure("|median rebound - ref|", _diff_median("rebound"), 0.05, True), "|median rebound - ref's|",
+           failure="fell through"),
 ]}

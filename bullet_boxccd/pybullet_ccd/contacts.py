@@ -341,8 +341,9 @@ class Contacts:
 
         A pair touching as the window began (pybullet's solver saw it) is acted on only if
         it ends deeper by more than depth_tolerance (the next corner of a turning box
-        striking, or a body driven through), from the time it presses in by more than a
-        creep (a box pivoting on a corner sinks that corner slowly); one met inside the
+        striking, or a body driven through): if it comes apart first, its next touch is
+        judged as a contact met inside the window; else from the time it presses in by
+        more than a creep (a box pivoting on a corner sinks that corner slowly); one met inside the
         window, if pybullet would resolve it wrongly (``_core.judge_contact``), from the
         time it overlaps by ``penetration``."""
         fa, fb = paths.frame[i], paths.frame[j]
@@ -363,10 +364,17 @@ class Contacts:
             action = "back" if back and not again else "stop"
         else:
             action = None
-        c, wrong, s_act, normal = _core.judge_contact(paths.rows[i], paths.rows[j], lo, s_touch, action is not None,
-                                                      pushing, self.penetration, self.depth_tolerance, CREEP,
-                                                      self.tolerances._core)
+        c, wrong, s_act, normal, apart = _core.judge_contact(paths.rows[i], paths.rows[j], lo, s_touch,
+                                                             action is not None, pushing, self.penetration,
+                                                             self.depth_tolerance, CREEP, self.tolerances._core)
         self.stats.outcomes[Outcome.SEPARATED if c is None else c.outcome] += 1
+        if not pushing and not math.isnan(apart):
+            # pybullet's solver parted the pair: where it meets again (another corner of a
+            # turning box striking) is an impact of its own, judged from its touch.
+            again = self._first_touches(paths, [(i, j)], lo + apart * (1.0 - lo))[0]
+            if again is None:
+                return {"act_at": touch, "action": None, "initial": initial, "window": (lo, 1.0), "contact": c}
+            return self._judge(paths, i, j, lo, again, back)
         info = {"act_at": touch, "action": None, "initial": initial, "window": (lo, 1.0), "contact": c}
         if c is None or action is None:  # c None: the fit's allowance touched, the boxes did not
             return info

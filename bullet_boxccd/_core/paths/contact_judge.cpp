@@ -41,6 +41,21 @@ double half_width(const double *X, const double *h, const Vec3 &n) {
     return r;
 }
 
+// The first sample time of (0, 1] at which the boxes are apart by more than `gap`, NaN if
+// they reach `target` depth first or are never seen apart: 2^-k for k = 8 .. 5 (a corner
+// leaving right after pybullet's solver parted it), then the sixteenths.
+double first_apart(const BoxPath &a, const BoxPath &b, double gap, double target) {
+    constexpr double kSamples[] = {1.0 / 256, 1.0 / 128, 1.0 / 64, 1.0 / 32};
+    constexpr int kEven = 16;
+    for (int k = 0; k < 4 + kEven; ++k) {
+        const double s = k < 4 ? kSamples[k] : (k - 3.0) / kEven;
+        const double depth = path_separation(a, b, s, nullptr, -gap);
+        if (depth >= target) return std::numeric_limits<double>::quiet_NaN();
+        if (depth < -gap) return s;
+    }
+    return std::numeric_limits<double>::quiet_NaN();
+}
+
 }  // namespace
 
 Judgement judge_contact(const double *row_a, const double *row_b, double lo, double s_touch, bool judge,
@@ -86,6 +101,7 @@ Judgement judge_contact(const double *row_a, const double *row_b, double lo, dou
         }
     }
     if (out.wrong || with_time) depth_time();
+    if (out.wrong && initial) out.apart = first_apart(a, b, penetration, target);
     return out;
 }
 
