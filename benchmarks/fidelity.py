@@ -43,7 +43,7 @@ The families (seeds by default; ``--quick``): 1 ``head_on`` (9 variants: restitu
 0 x straight, tilted, spinning; 4 each; 1), 2 ``spinning`` (16; 6), 3 ``table`` (12; 4),
 4 ``planks`` (6; 2), 5 ``rain`` (48 boxes, 4 seeds; 1; and 100 and 1000 boxes for cost only,
 one seed; 100 only with --quick), 6a ``arm`` (8; 2), 6b ``biped`` (8; 2), 7 ``pusher`` (8; 2),
-8 ``stack`` (12; 3). ``--study K1,K2,..`` prints the references' figures at each dt/K instead
+8 ``stack`` (12; 3), 9 ``glancing`` (16; 6). ``--study K1,K2,..`` prints the references' figures at each dt/K instead
 (how K was chosen). ``--maximal`` builds every body in maximal coordinates
 (``useMaximalCoordinates=True``) for every method, into ``fidelity_maximal.csv`` and ``.png``.
 
