@@ -343,9 +343,9 @@ class Contacts:
         it ends deeper by more than depth_tolerance (the next corner of a turning box
         striking, or a body driven through): if it comes apart first, its next touch is
         judged as a contact met inside the window; else from the time it presses in by
-        more than a creep (a box pivoting on a corner sinks that corner slowly); one met inside the
-        window, if pybullet would resolve it wrongly (``_core.judge_contact``), from the
-        time it overlaps by ``penetration``."""
+        more than a creep (a box pivoting on a corner sinks that corner slowly); one met
+        inside the window, if pybullet would resolve it wrongly (``_core.judge_contact``),
+        from the time it overlaps by ``penetration``."""
         fa, fb = paths.frame[i], paths.frame[j]
         s_touch = (touch - lo) / (1.0 - lo)
         initial = s_touch == 0.0
@@ -368,14 +368,12 @@ class Contacts:
                                                              action is not None, pushing, self.penetration,
                                                              self.depth_tolerance, CREEP, self.tolerances._core)
         self.stats.outcomes[Outcome.SEPARATED if c is None else c.outcome] += 1
+        info = {"act_at": touch, "action": None, "initial": initial, "window": (lo, 1.0), "contact": c}
         if not pushing and not math.isnan(apart):
             # pybullet's solver parted the pair: where it meets again (another corner of a
             # turning box striking) is an impact of its own, judged from its touch.
             again = self._first_touches(paths, [(i, j)], lo + apart * (1.0 - lo))[0]
-            if again is None:
-                return {"act_at": touch, "action": None, "initial": initial, "window": (lo, 1.0), "contact": c}
-            return self._judge(paths, i, j, lo, again, back)
-        info = {"act_at": touch, "action": None, "initial": initial, "window": (lo, 1.0), "contact": c}
+            return info if again is None else self._judge(paths, i, j, lo, again, back)
         if c is None or action is None:  # c None: the fit's allowance touched, the boxes did not
             return info
         if pushing:
