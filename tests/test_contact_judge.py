@@ -42,7 +42,7 @@ def judge(r, s_touch=None, lo=0.0, with_time=False, swap=False):
 def test_a_pass_through_goes_wrong_from_its_first_depth(swap):
     """A cube crossing a 2 cm wall in the step ends apart on the far side: wrong, acted on
     from the time it is ``penetration`` deep, x = -0.11 + penetration."""
-    c, wrong, s, _, _ = judge(rows(WALL, (0, 0), CUBE, (-0.5, 0.5)), swap=swap)
+    c, wrong, s, *_ = judge(rows(WALL, (0, 0), CUBE, (-0.5, 0.5)), swap=swap)
     assert c is not None and wrong
     assert s == pytest.approx(0.39 + PENETRATION, abs=1e-9)
     assert c.t == pytest.approx(0.39, abs=1e-6)
@@ -53,18 +53,18 @@ def test_a_pass_through_goes_wrong_from_its_first_depth(swap):
 def test_an_overlap_at_the_end_is_wrong_past_the_depth_tolerance(end, wrong, swap):
     """Met inside the step and ending 0.5, 1.5 or 5 mm into the wall: pybullet's own below
     ``depth_tolerance`` (1 mm); wrong beyond it, from x = -0.11 + penetration."""
-    c, got, s, _, _ = judge(rows(WALL, (0, 0), CUBE, (-0.5, end)), swap=swap)
+    c, got, s, *_ = judge(rows(WALL, (0, 0), CUBE, (-0.5, end)), swap=swap)
     assert c is not None and got == wrong
     if wrong:
         assert s == pytest.approx((0.39 + PENETRATION) / (end + 0.5), abs=1e-9)
     else:
         assert np.isnan(s)
-        _, _, s, _, _ = judge(rows(WALL, (0, 0), CUBE, (-0.5, end)), with_time=True, swap=swap)
+        _, _, s, *_ = judge(rows(WALL, (0, 0), CUBE, (-0.5, end)), with_time=True, swap=swap)
         assert s == pytest.approx((0.39 + PENETRATION) / (end + 0.5), abs=1e-9)
 
 
 def test_a_pair_that_stays_apart_has_no_contact():
-    c, wrong, s, _, _ = _core.judge_contact(*rows(WALL, (0, 0), CUBE, (-0.5, -0.2)), 0.0, 0.0, True, True, PENETRATION,
+    c, wrong, s, *_ = _core.judge_contact(*rows(WALL, (0, 0), CUBE, (-0.5, -0.2)), 0.0, 0.0, True, True, PENETRATION,
                                       DEPTH_TOLERANCE, CREEP, TOL)
     assert c is None and not wrong and np.isnan(s)
 
@@ -74,7 +74,7 @@ def test_a_pair_touching_as_the_window_begins_is_judged_on_how_much_deeper_it_en
     """0.1 mm in at the start: pybullet's solver saw it. Wrong if it ends more than
     ``depth_tolerance`` deeper; acted on from the depth at the start plus the creep (2% of
     the wall's 1 cm half thickness, 0.2 mm): x = -0.11 + 0.3 mm."""
-    c, got, s, _, _ = judge(rows(WALL, (0, 0), CUBE, (-0.1099, end)), s_touch=0.0)
+    c, got, s, *_ = judge(rows(WALL, (0, 0), CUBE, (-0.1099, end)), s_touch=0.0)
     assert c is not None and c.initial and got == wrong
     if wrong:
         assert s == pytest.approx((-0.11 + 3e-4 + 0.1099) / (end + 0.1099), abs=1e-9)
@@ -83,7 +83,7 @@ def test_a_pair_touching_as_the_window_begins_is_judged_on_how_much_deeper_it_en
 def test_a_window_later_in_the_step():
     """The same pass through, judged over the window [0.25, 1] of the step: its fractions
     are the window's."""
-    c, wrong, s, _, _ = judge(rows(WALL, (0, 0), CUBE, (-0.5, 0.5)), lo=0.25)
+    c, wrong, s, *_ = judge(rows(WALL, (0, 0), CUBE, (-0.5, 0.5)), lo=0.25)
     assert c is not None and wrong
     assert s == pytest.approx((0.39 + PENETRATION - 0.25) / 0.75, abs=1e-9)
 
@@ -93,7 +93,7 @@ def test_a_box_ending_past_the_middle_of_a_thin_sheet_goes_wrong():
     into each other in y all along) ends 1 cm from the sheet's centre along the contact
     normal: its least overlap is the sheet's 0.3 mm in y, which pybullet would push it out
     along, sideways. Shallow, yet wrong: past the middle."""
-    c, wrong, s, _, _ = judge(rows((0.1, 4e-4, 0.1), (0, 0), CUBE, (-0.5, -0.01), y_b=0.1004 - 3e-4))
+    c, wrong, s, *_ = judge(rows((0.1, 4e-4, 0.1), (0, 0), CUBE, (-0.5, -0.01), y_b=0.1004 - 3e-4))
     assert c is not None and wrong and s == pytest.approx((0.3 + PENETRATION) / 0.49, abs=1e-9)
 
 
@@ -113,30 +113,38 @@ def turning_rows(x0, dx, turn):
 EDGE = -0.01 - 0.1 * math.sqrt(2)  # the cube's centre with its edge on the wall's face
 
 
-def test_a_touching_pair_that_parts_and_meets_again_says_when_it_was_apart():
+def test_a_touching_pair_that_parts_and_meets_again_says_when():
     """An edge 0.1 mm into the wall at the start, the cube turning a quarter turn as its
     centre comes 3 mm closer: the edge leaves (the face turns towards the wall, 4 cm away
-    midway), and the next edge ends 3.1 mm in: wrong, and apart at a time before that."""
+    midway), and the next edge strikes and ends 3.1 mm in: wrong, parted, and touching
+    again where its depth crosses 0 (apart just before)."""
     r = turning_rows(EDGE + 1e-4, 0.003, math.pi / 2)
-    c, wrong, _, _, apart = judge(r, s_touch=0.0)
-    assert c is not None and wrong
+    c, wrong, _, _, parted, again = judge(r, s_touch=0.0)
+    assert c is not None and wrong and parted
     a, b = _core.RowBoxPath(r[0]), _core.RowBoxPath(r[1])
-    assert 0.0 < apart < 0.5 and _core.paths_separation(a, b, apart)[0] < -PENETRATION
+    assert 0.5 < again < 1.0
+    assert 0.0 <= _core.paths_depth(a, b, again) < 1e-12 and _core.paths_depth(a, b, again - 1e-9) < 0.0
     assert _core.paths_depth(a, b, 1.0) == pytest.approx(0.003 + 1e-4, abs=1e-9)
+
+
+def test_a_touching_pair_that_parts_for_good_is_not_looked_at():
+    """The same turn with the centre going 3 mm away instead: the next edge ends 2.9 mm
+    short of the wall. Not wrong, so nothing is looked for."""
+    r = turning_rows(EDGE + 1e-4, -0.003, math.pi / 2)
+    c, wrong, _, _, parted, again = judge(r, s_touch=0.0)
+    assert c is not None and not wrong and not parted and np.isnan(again)
 
 
 def test_a_touching_pair_pressed_through_is_never_apart_first():
     """0.1 mm in at the start and driven through the wall: it ends apart on the far side,
-    but reached the pressing depth first: no time apart (the press is acted on)."""
-    c, wrong, s, _, apart = judge(rows(WALL, (0, 0), CUBE, (-0.1099, 0.5)), s_touch=0.0)
+    but reached the pressing depth first: not parted (the press is acted on)."""
+    c, wrong, s, _, parted, again = judge(rows(WALL, (0, 0), CUBE, (-0.1099, 0.5)), s_touch=0.0)
     assert c is not None and wrong and not np.isnan(s)
-    assert np.isnan(apart)
+    assert not parted and np.isnan(again)
 
 
-def test_only_a_touching_pair_judged_wrong_is_looked_at_for_parting():
-    """Met inside the step, or touching and ending shallow: no time apart is looked for."""
-    assert np.isnan(judge(rows(WALL, (0, 0), CUBE, (-0.5, 0.5)))[4])
-    assert np.isnan(judge(turning_rows(EDGE + 1e-4, -0.003, math.pi / 2), s_touch=0.0)[4])
+def test_a_pair_met_inside_the_window_is_not_looked_at_for_parting():
+    assert not judge(rows(WALL, (0, 0), CUBE, (-0.5, 0.5)))[4]
 
 # ------------------------------------------------------------- link boxes
 def judge_link(r):

@@ -364,16 +364,15 @@ class Contacts:
             action = "back" if back and not again else "stop"
         else:
             action = None
-        c, wrong, s_act, normal, apart = _core.judge_contact(paths.rows[i], paths.rows[j], lo, s_touch,
-                                                             action is not None, pushing, self.penetration,
-                                                             self.depth_tolerance, CREEP, self.tolerances._core)
+        c, wrong, s_act, normal, parted, again = _core.judge_contact(
+            paths.rows[i], paths.rows[j], lo, s_touch, action is not None, pushing, self.penetration,
+            self.depth_tolerance, CREEP, self.tolerances._core)
         self.stats.outcomes[Outcome.SEPARATED if c is None else c.outcome] += 1
         info = {"act_at": touch, "action": None, "initial": initial, "window": (lo, 1.0), "contact": c}
-        if not pushing and not math.isnan(apart):
+        if parted and not pushing:
             # pybullet's solver parted the pair: where it meets again (another corner of a
             # turning box striking) is an impact of its own, judged from its touch.
-            again = self._first_touches(paths, [(i, j)], lo + apart * (1.0 - lo))[0]
-            return info if again is None else self._judge(paths, i, j, lo, again, back)
+            return info if math.isnan(again) else self._judge(paths, i, j, lo, lo + again * (1.0 - lo), back)
         if c is None or action is None:  # c None: the fit's allowance touched, the boxes did not
             return info
         if pushing:

@@ -170,7 +170,7 @@ nb::object paths_window_contact(const BoxPath &a, const BoxPath &b, double lo, d
     return hit_result(window_contact(a, b, lo, hi, tol));
 }
 
-// (contact or None, wrong, depth time, normal at the window's end (3,), apart):
+// (contact or None, wrong, depth time, normal at the window's end (3,), parted, again):
 // judge_contact of rows a, b over the window [lo, 1].
 nb::tuple py_judge_contact(const In<kPathBoxSize> &row_a, const In<kPathBoxSize> &row_b, double lo, double s_touch,
                            bool judge, bool with_time, double penetration, double depth_tolerance, double creep,
@@ -185,7 +185,7 @@ nb::tuple py_judge_contact(const In<kPathBoxSize> &row_a, const In<kPathBoxSize>
     double *normal;
     auto n = new_array<3>({3}, normal);
     std::copy(j.normal_at_end.begin(), j.normal_at_end.end(), normal);
-    return nb::make_tuple(hit_result(j.contact), j.wrong, j.depth_time, n, j.apart);
+    return nb::make_tuple(hit_result(j.contact), j.wrong, j.depth_time, n, j.parted, j.again);
 }
 
 // (touch, act, contact or None, point (3,), normal (3,), initial, pressing, solves):

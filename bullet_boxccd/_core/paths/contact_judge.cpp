@@ -101,7 +101,11 @@ Judgement judge_contact(const double *row_a, const double *row_b, double lo, dou
         }
     }
     if (out.wrong || with_time) depth_time();
-    if (out.wrong && initial) out.apart = first_apart(a, b, penetration, target);
+    if (out.wrong && initial) {
+        const double apart = first_apart(a, b, penetration, target);
+        out.parted = !std::isnan(apart);
+        if (out.parted) out.again = first_depth(a, b, apart, 0.0);
+    }
     return out;
 }
 

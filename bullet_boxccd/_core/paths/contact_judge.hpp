@@ -28,11 +28,12 @@ struct Judgement {
     // an edge-edge contact, the one that turns less); NaN without a contact or a facet.
     Vec3 normal_at_end{std::numeric_limits<double>::quiet_NaN(), std::numeric_limits<double>::quiet_NaN(),
                        std::numeric_limits<double>::quiet_NaN()};
-    // A pair touching as the window began and judged wrong: a time in (0, 1] at which it is
-    // apart by more than the penetration, before it reaches the target depth (pybullet's
-    // solver parted it; what it meets next is a new contact, an impact); NaN if none is
-    // seen (sampled: 2^-k of the window, k = 8 .. 5, then sixteenths).
-    double apart = std::numeric_limits<double>::quiet_NaN();
+    // A pair touching as the window began and judged wrong: whether it was seen apart by
+    // more than the penetration before reaching the target depth (pybullet's solver
+    // parted it; sampled at 2^-k of the window, k = 8 .. 5, then every sixteenth), and
+    // then when it touches again (a new contact, an impact; first_depth to 0), NaN if never.
+    bool parted = false;
+    double again = std::numeric_limits<double>::quiet_NaN();
 };
 
 // The judgement of the pair of path rows a, b (PathRow) over the window [lo, 1] of the
