@@ -54,7 +54,7 @@ Run
     python benchmarks/fidelity.py --families head_on,table --seeds 4 --knob max_partial_steps=4
 
 This is a benchmark, not a test: it asserts nothing (tests/test_fidelity.py does, on the
-deterministic head-on cases).
+deterministic head-on cases and the glancing family).
 """
 
 from __future__ import annotations
