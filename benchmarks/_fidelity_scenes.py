@@ -612,6 +612,13 @@ def _pct(key, fn):
     return lambda rs: fn(all_of(rs, key))
 
 
+def _quartiles(key, label, tol_median, tol_quartile):
+    """The figures "<label> median", "<label> q25" and "<label> q75" of the measure ``key``."""
+    return [Figure(f"{label} median", _pct(key, med), tol_median),
+            Figure(f"{label} q25", _pct(key, q25), tol_quartile),
+            Figure(f"{label} q75", _pct(key, q75), tol_quartile)]
+
+
 def _diff_median(key):
     return lambda rs, refs: abs(med(all_of(rs, key)) - med(all_of(refs, key)))
 
@@ -633,20 +640,14 @@ FAMILIES = {f.key: f for f in [
            "|v - v_ref| / impact speed (median)", phases=8),
     Family("spinning", "2 spinning 0.1 m cubes, 1 cm wall", 1 / 240, 256, 16, 6, ["-"],
            spinning_build, spinning_observe, spinning_measure,
-           [Figure("rebound median", _pct("rebound", med), 0.05),
-            Figure("rebound q25", _pct("rebound", q25), 0.08),
-            Figure("rebound q75", _pct("rebound", q75), 0.08),
-            Figure("KE ratio median", _pct("ke", med), 0.05),
-            Figure("KE ratio q25", _pct("ke", q25), 0.08),
-            Figure("KE ratio q75", _pct("ke", q75), 0.08),
+           [*_quartiles("rebound", "rebound", 0.05, 0.08),
+            *_quartiles("ke", "KE ratio", 0.05, 0.08),
             Figure("KE ratio max", _pct("ke", np.max), 0.1),
             Figure("tunneled", _count("tunneled"), 0.5)],
            Figure("|median rebound - ref|", _diff_median("rebound"), 0.05, True), "|median rebound - ref's|"),
     Family("table", "3 cube_small thrown at table.urdf", 1 / 240, 512, 12, 4, ["-"],
            table_build, table_observe, table_measure,
-           [Figure("rise m/s median", _pct("rise", med), 3.0),
-            Figure("rise m/s q25", _pct("rise", q25), 4.0),
-            Figure("rise m/s q75", _pct("rise", q75), 4.0),
+           [*_quartiles("rise", "rise m/s", 3.0, 4.0),
             Figure("rise m/s max", _pct("rise", np.max), 5.0),
             Figure("travel m median", _pct("travel", med), 2.0),
             Figure("fell through", _count("through"), 0.5)],
@@ -708,9 +709,7 @@ FAMILIES = {f.key: f for f in [
            Figure("|median KE ratio - ref|", _diff_median("ke"), 0.05, True), "|median KE ratio - ref's|"),
     Family("glancing", "9 cube glancing off a 1 cm floor", 1 / 240, 256, 16, 6, ["-"],
            glancing_build, glancing_observe, glancing_measure,
-           [Figure("rebound median", _pct("rebound", med), 0.05),
-            Figure("rebound q25", _pct("rebound", q25), 0.08),
-            Figure("rebound q75", _pct("rebound", q75), 0.08),
+           [*_quartiles("rebound", "rebound", 0.05, 0.08),
             Figure("KE ratio median", _pct("ke", med), 0.05),
             Figure("fell through", _count("through"), 0.5)],
            Figure("|median rebound - ref|", _diff_median("rebound"), 0.05, True), "|median rebound - ref's|",

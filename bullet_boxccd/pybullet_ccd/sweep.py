@@ -85,7 +85,7 @@ def sweep(cid, tables, state, dt, fit_tolerance, tolerances, penetration, stats,
     state.read_poses(state.stale(fast_frames))
     stats.swept_boxes += len(fast)
     bounds = None  # the fast boxes' swept bounds, once asked for
-    if tables.unswept and near_unswept is not None:
+    if near_unswept is not None:
         _, bounds = sweeper.rows(dt, fast)
         reach = bounds[:, :3].min(axis=0).tolist() + bounds[:, 3:].max(axis=0).tolist()
         near = [key for key in map(tuple, overlap_query(cid, reach, slack)) if key in tables.unswept]
