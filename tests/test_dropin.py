@@ -420,6 +420,45 @@ def test_removed_and_recreated_body_with_the_same_id_is_swept(cid):
     assert through[True] == 0 and through[False] >= 3, through
 
 
+@pytest.mark.parametrize("substeps", [1, 4])
+@pytest.mark.parametrize("given", ["force", "torque motor"])
+def test_a_removed_body_takes_the_forces_given_to_it_along(cid, given, substeps):
+    """A force or a torque-mode motor given to a body that is then removed, and a new body
+    made under its id, in a step BoxCCD takes in pieces (substeps, or a partial step from a
+    fast cube's impact): pybullet dropped the force with the body, so the pieces apply it
+    to nothing, and the new body moves as in plain pybullet."""
+    ends = {}
+    for use in (False, True):
+        reset(cid)
+        box(cid, [0.005, 2, 2], [0, 0, 0], mass=0.0)
+        cube = box(cid, [0.05] * 3, [-0.5, 0, 0])
+        p.changeDynamics(cube, -1, maxJointVelocity=1000, physicsClientId=cid)
+        p.setPhysicsEngineParameter(numSubSteps=substeps, physicsClientId=cid)
+        p.resetBaseVelocity(cube, [150 if substeps == 1 else 0.5, 0, 0], physicsClientId=cid)
+        shape = p.createCollisionShape(p.GEOM_BOX, halfExtents=[0.1, 0.02, 0.02], physicsClientId=cid)
+        if given == "force":
+            gone = box(cid, [0.05] * 3, [-0.5, 1, 0])
+            p.applyExternalForce(gone, -1, [0, 0, 1000], [0, 0, 0], p.WORLD_FRAME, physicsClientId=cid)
+        else:
+            gone = p.createMultiBody(1, shape, basePosition=[3, 3, 0], linkMasses=[1], linkCollisionShapeIndices=[shape],
+                                     linkVisualShapeIndices=[-1], linkPositions=[[0.2, 0, 0]],
+                                     linkOrientations=[[0, 0, 0, 1]], linkInertialFramePositions=[[0, 0, 0]],
+                                     linkInertialFrameOrientations=[[0, 0, 0, 1]], linkParentIndices=[0],
+                                     linkJointTypes=[p.JOINT_REVOLUTE], linkJointAxis=[[0, 0, 1]], physicsClientId=cid)
+            p.setJointMotorControl2(gone, 0, p.TORQUE_CONTROL, force=1.0, physicsClientId=cid)
+        p.removeBody(gone, physicsClientId=cid)
+        new = box(cid, [0.05] * 3, [-0.5, -1, 0])
+        assert new == gone
+        ccd = BoxCCD(cid) if use else None
+        for _ in range(3):
+            ccd.step() if ccd else p.stepSimulation(physicsClientId=cid)
+        if use and substeps == 1:
+            assert ccd.stats.partial_steps >= 1
+        ends[use] = p.getBasePositionAndOrientation(new, physicsClientId=cid) + p.getBaseVelocity(new, physicsClientId=cid)
+    p.setPhysicsEngineParameter(numSubSteps=0, physicsClientId=cid)
+    assert ends[True] == ends[False]
+
+
 def batch_scene(cid, use, speed):
     """Boxes made in one createMultiBody(batchPositions=...) call (pybullet's client then
     lists only the last of them) thrown at a 1 cm wall."""

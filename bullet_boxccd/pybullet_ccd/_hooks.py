@@ -334,6 +334,15 @@ def _forget(j, b):
     j.mjcf.pop(b, None)
     j.link_geometry.pop(b, None)
     j.damping.pop(b, None)
+    j.impulses[:] = [x for x in j.impulses if _impulse_body(x) != b]  # pybullet dropped them with the body
+
+
+def _impulse_body(impulse):
+    kind, a = impulse
+    if kind == "call":
+        named = a[1]
+        return int(named.get("bodyUniqueId", named.get("bodyIndex", -1)))
+    return a[0]
 
 
 def damping(j, b, maximal):
