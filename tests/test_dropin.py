@@ -459,6 +459,36 @@ def test_a_removed_body_takes_the_forces_given_to_it_along(cid, given, substeps)
     assert ends[True] == ends[False]
 
 
+def test_a_step_of_no_time_or_of_a_time_not_above_zero_is_pybullets(cid):
+    """pybullet steps whatever fixedTimeStep it is given (0 moves nothing; a negative step
+    runs the world backwards): BoxCCD takes such a step as pybullet does, names one it
+    cannot sweep, and sweeps again once the step is a time above zero."""
+    ends = {}
+    for use in (False, True):
+        reset(cid)
+        box(cid, [0.005, 1, 1], [0, 0, 0], mass=0.0)
+        cube = box(cid, [0.05] * 3, [-0.5, 0, 0])
+        throw(cid, cube, speed=3.0)
+        ccd = BoxCCD(cid) if use else None
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            states = []
+            for dt, steps in ((0.0, 3), (-DT, 3), (DT, 3)):
+                p.setTimeStep(dt, physicsClientId=cid)
+                for _ in range(steps):
+                    ccd.step() if ccd else p.stepSimulation(physicsClientId=cid)
+                    states.append(p.getBasePositionAndOrientation(cube, physicsClientId=cid))
+        ends[use] = states
+        if use:
+            named = [str(w.message) for w in caught if issubclass(w.category, BoxCCDWarning)]
+            assert len(named) == 1 and f"fixedTimeStep is {-DT!r}" in named[0], named
+    assert ends[True] == ends[False]
+    throw(cid, cube, speed=300.0)  # the step is a time again: swept
+    for _ in range(10):
+        ccd.step()
+    assert x_of(cid, cube) < 0.0
+
+
 def batch_scene(cid, use, speed):
     """Boxes made in one createMultiBody(batchPositions=...) call (pybullet's client then
     lists only the last of them) thrown at a 1 cm wall."""

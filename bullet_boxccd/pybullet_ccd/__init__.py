@@ -177,9 +177,6 @@ class BoxCCD:
             self._dt, self._substeps = params["fixedTimeStep"], max(int(params.get("numSubSteps", 0)), 1)
             self._gravity = np.array([params.get(f"gravityAcceleration{c}", 0.0) for c in "XYZ"])
             self._params_seen = max(j.params, j.reset)
-        if not (math.isfinite(self._dt) and self._dt > 0.0):
-            raise InvalidInputError(f"the world's fixedTimeStep is {self._dt!r}; expected a finite number > 0 "
-                                    "(p.setTimeStep)")
         if self._substeps > 1 and j.pd_control and self._watched:
             self._warn(("pd",), "with numSubSteps > 1 BoxCCD takes the substeps itself: torques of PD_CONTROL and "
                                 "STABLE_PD_CONTROL motors are computed again for each substep")
@@ -270,7 +267,7 @@ class BoxCCD:
             self.stats.steps += 1
         # A world where no moving box can meet another is stepped by pybullet alone (its own
         # substeps too); one with substeps or a kinematic velocity otherwise takes the full path.
-        self._quiet = not self._state.with_velocity and (self._substeps == 1 or not self._watched)
+        self._quiet = not self._state.with_velocity and (self._substeps == 1 or not self._watched) and self._timed()
         self._epoch = last_serial()
         return events
 
@@ -278,6 +275,11 @@ class BoxCCD:
         self._check_connected()
         self._sync()
         dt, n = self._dt, self._substeps
+        if not self._timed():
+            if dt != 0.0:  # (a step of no time moves nothing)
+                self._warn(("dt", dt), f"the world's fixedTimeStep is {dt!r}: BoxCCD sweeps steps of a finite "
+                                       "time > 0 only, and pybullet takes this one alone (p.setTimeStep)")
+            return self._pybullet_alone()
         if n == 1:
             return self._step(dt, 0.0, dt, struck)
         if not self._watched and not self._state.with_velocity:
@@ -291,6 +293,10 @@ class BoxCCD:
                 struck, self._struck_next = self._struck_next, set()
         self._struck_next = struck
         return events
+
+    def _timed(self):
+        """The world's step is a finite time > 0 (pybullet steps any other too)."""
+        return math.isfinite(self._dt) and self._dt > 0.0
 
     def _pybullet_alone(self):
         """A step of pybullet alone (its own substeps too): no box that moves can meet another."""
