@@ -215,6 +215,66 @@ def test_driven_arm_sweeps_light_cubes_ahead_and_is_not_held_back(cid):
 
 
 # ------------------------------------------------------------ do no harm
+def _door_strike(cid, use_ccd, seed, K=1):
+    """A tumbling 0.1 m cube (50-150 m/s, spin N(0, 30) rad/s an axis) thrown at a hinged
+    door (a 1 cm box link on a revolute joint, motor off, nothing damped, no gravity), at
+    a step of 1/240 s / K: (the door's joint velocity and the angular momentum of cube and
+    door about the hinge, before and after)."""
+    dt = 1 / 240
+    _world(cid, dt / K)
+    rng = np.random.default_rng(seed)
+    speed, frac, r, zc = rng.uniform(50, 150), rng.uniform(0.05, 0.95), rng.uniform(0.15, 0.7), rng.uniform(-0.4, 0.4)
+    q = rng.normal(size=4)
+    spin = rng.normal(0, 30, 3)
+    col = p.createCollisionShape(p.GEOM_BOX, halfExtents=[0.005, 0.4, 0.5], collisionFramePosition=[0, 0.4, 0],
+                                 physicsClientId=cid)
+    door = p.createMultiBody(0, -1, -1, linkMasses=[5.0], linkCollisionShapeIndices=[col], linkVisualShapeIndices=[-1],
+                             linkPositions=[[0, 0, 0]], linkOrientations=[[0, 0, 0, 1]],
+                             linkInertialFramePositions=[[0, 0.4, 0]], linkInertialFrameOrientations=[[0, 0, 0, 1]],
+                             linkParentIndices=[0], linkJointTypes=[p.JOINT_REVOLUTE], linkJointAxis=[[0, 0, 1]],
+                             physicsClientId=cid)
+    p.changeDynamics(door, 0, restitution=1.0, linearDamping=0, angularDamping=0, jointDamping=0,
+                     maxJointVelocity=1000, physicsClientId=cid)
+    p.setJointMotorControl2(door, 0, p.VELOCITY_CONTROL, force=0, physicsClientId=cid)
+    shape = p.createCollisionShape(p.GEOM_BOX, halfExtents=[0.05] * 3, physicsClientId=cid)
+    start = [-0.005 - 0.05 * np.sqrt(3) - speed * (2 + frac) * dt, r, zc]
+    cube = p.createMultiBody(1.0, shape, basePosition=start, baseOrientation=(q / np.linalg.norm(q)).tolist(),
+                             physicsClientId=cid)
+    p.changeDynamics(cube, -1, restitution=0.5, linearDamping=0, angularDamping=0, maxJointVelocity=1000,
+                     physicsClientId=cid)
+    p.resetBaseVelocity(cube, [speed, 0, 0], spin.tolist(), physicsClientId=cid)
+    i_door = p.getDynamicsInfo(door, 0, physicsClientId=cid)[2][2] + 5.0 * 0.4 ** 2
+
+    def hinge_momentum():
+        (x, y, _), orn = p.getBasePositionAndOrientation(cube, physicsClientId=cid)
+        (vx, vy, _), w = p.getBaseVelocity(cube, physicsClientId=cid)
+        i_cube = p.getDynamicsInfo(cube, -1, physicsClientId=cid)[2][2]  # a cube's inertia is isotropic
+        return x * vy - y * vx + i_cube * w[2] + i_door * p.getJointState(door, 0, physicsClientId=cid)[1]
+
+    ccd = BoxCCD(cid) if use_ccd else None
+    before = hinge_momentum()
+    for _ in range(4 * K):  # the touch comes in the third step: two steps after it
+        ccd.step() if ccd else p.stepSimulation(physicsClientId=cid)
+    return p.getJointState(door, 0, physicsClientId=cid)[1], before, hinge_momentum()
+
+
+def test_a_cube_striking_a_hinged_door_swings_it_as_pybullet_at_a_fine_step(cid):
+    """Nothing can change the angular momentum of cube and door about the hinge: pybullet
+    at a fine step keeps it to 1e-3 (at 1/240 s, where its cube does not pass through, it
+    drifts by up to 2%). When the world goes back within the impact's partial step, the
+    door (taken back in joint space) keeps the impact's impulse as its free partner does;
+    scaled on the door's side only, up to 60% of the momentum was lost and the door swung
+    at 36% less than the converged engine's speed (the median over 16 seeds)."""
+    errors = []
+    for seed in range(6):
+        w, before, after = _door_strike(cid, True, seed)
+        assert after == pytest.approx(before, rel=0.1), seed
+        w_ref, ref_before, ref_after = _door_strike(cid, False, seed, K=256)
+        assert ref_after == pytest.approx(ref_before, rel=0.01)
+        errors.append(abs(w - w_ref) / abs(w_ref))
+    assert max(errors) < 0.15, errors
+
+
 def _states(cid, bodies):
     out = []
     for b in bodies:

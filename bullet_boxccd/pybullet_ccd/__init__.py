@@ -442,7 +442,7 @@ class BoxCCD:
             events, tau = self.contacts.resolve(sw, jw, t, st, h, user_moved, self._gravity, True, tau_links,
                                                 self._struck, self._presses)
             if tau < 1.0:
-                self._chains.stop_all(tau, st)
+                self._chains.stop_all(tau, st, self._struck)
                 self._others.back(h, tau, self._gravity)
                 if self.contacts.acted:
                     self._acted, self._struck = self.contacts.acted, self.contacts.struck

@@ -400,15 +400,15 @@ class Articulated:
         place(self.cid, self.tables, state, g, pose7(X1), v, state.rows[g, ANGULAR_VELOCITY].copy())
 
     # ------------------------------------------------------------ stopping
-    def stop(self, rec, tau, state):
+    def stop(self, rec, tau, state, whole=False):
         """Put the body where its path has it at tau (base pose, joint positions), with the
         velocities it had there: between its velocities before and after the step, in
-        proportion (after the step if those before are not known); its frames stand still
-        from there."""
+        proportion (after the step if those before are not known, or if ``whole``); its
+        frames stand still from there."""
         cid, m = self.cid, rec.motion
         base = m.base_pose(tau)
         twist, qdot = rec.base_state[7:13].copy(), rec.qdot
-        if rec.start is not None and len(rec.start[1]) == len(qdot):
+        if not whole and rec.start is not None and len(rec.start[1]) == len(qdot):
             twist = rec.start[0] + tau * (twist - rec.start[0])
             qdot = rec.start[1] + tau * (qdot - rec.start[1])
         rec.base_state[7:13], rec.qdot = twist, qdot  # the next (partial) step starts from these
@@ -420,14 +420,15 @@ class Articulated:
             state.rows[f, TWIST] = 0.0
         rec.motion = None  # its paths are no longer this step's
 
-    def stop_all(self, tau, state):
+    def stop_all(self, tau, state, struck=frozenset()):
         """The world taken back to tau: every articulated body where its path has it then,
-        with its velocities there in proportion (even when struck as the partial step began,
-        unlike a free body: its motors' impulses, kept whole with the impact's, would be
-        applied twice, and a landing robot pumped up by them left the floor)."""
+        with its velocities there in proportion; a body with a frame in ``struck`` (of the
+        contact the world was taken back to as the partial step began) keeps its velocities
+        after the step, as its free partner does: the impact's impulse acted whole at that
+        start, and scaled on one side only it would take momentum out of the pair."""
         for rec in self.bodies.values():
             if rec.motion is not None:
-                self.stop(rec, tau, state)
+                self.stop(rec, tau, state, not struck.isdisjoint(rec.frames))
 
 
 def _grow(lo, hi, aabb, by):
