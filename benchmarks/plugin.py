@@ -74,7 +74,7 @@ that also reaches zero tunneling.
 
 Run
 ---
-    python benchmarks/plugin.py            # about 6 min
+    python benchmarks/plugin.py            # several minutes
     python benchmarks/plugin.py --quick    # about 2 min
 
 Options: ``--seed`` (default 2024), ``--trials`` (per N up to 100 boxes, default 6;
