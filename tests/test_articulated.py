@@ -215,6 +215,35 @@ def test_driven_arm_sweeps_light_cubes_ahead_and_is_not_held_back(cid):
 
 
 # ------------------------------------------------------------ do no harm
+def _tip_through_plate(cid, use_ccd, K=1):
+    """The 0.6 m bar of ``_arm`` swinging at 144 rad/s towards a 1 cm plate whose face
+    crosses its tip's circle 2 cm inside it (the plane x = 0.58; restitution 1): in one
+    step of 1/240 s the tip would sweep into the plate, through it, and out again on its
+    own side. The bar's joint velocity after 4 steps of 1/240 s (stepped K times finer)."""
+    _world(cid, 1 / 240 / K)
+    arm = _arm(cid)
+    shape = p.createCollisionShape(p.GEOM_BOX, halfExtents=[0.005, 0.3, 0.2], physicsClientId=cid)
+    plate = p.createMultiBody(0, shape, basePosition=[0.585, 0, 0], physicsClientId=cid)
+    for body, link in ((arm, 0), (plate, -1)):
+        p.changeDynamics(body, link, restitution=1.0, physicsClientId=cid)
+    p.resetJointState(arm, 0, -0.3, 144.0, physicsClientId=cid)
+    ccd = BoxCCD(cid) if use_ccd else None
+    for _ in range(4 * K):
+        ccd.step() if ccd else p.stepSimulation(physicsClientId=cid)
+    return p.getJointState(arm, 0, physicsClientId=cid)[1]
+
+
+def test_a_link_swinging_through_a_plate_and_out_within_a_step_strikes_it(cid):
+    """pybullet, seeing only the step's ends, lets the tip pass through the plate and on;
+    at a fine step the tip strikes the plate's face and the bar comes back (restitution 1:
+    -123 and -125 rad/s at 1/61,440 and 1/245,760 s). The link's contact ends apart on its
+    own side, but went past the plate's middle on the way: the world goes back to it."""
+    plain, ccd = _tip_through_plate(cid, False), _tip_through_plate(cid, True)
+    ref, ref_fine = _tip_through_plate(cid, False, 256), _tip_through_plate(cid, False, 1024)
+    assert plain > 100.0 and ref_fine == pytest.approx(ref, rel=0.03)
+    assert ccd == pytest.approx(ref_fine, rel=0.05), (ccd, ref_fine)
+
+
 def _door_strike(cid, use_ccd, seed, K=1):
     """A tumbling 0.1 m cube (50-150 m/s, spin N(0, 30) rad/s an axis) thrown at a hinged
     door (a 1 cm box link on a revolute joint, motor off, nothing damped, no gravity), at

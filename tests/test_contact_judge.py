@@ -194,6 +194,38 @@ def test_a_link_box_pressing_as_the_step_begins(end, wrong):
         assert np.isnan(act)
 
 
+def swinging_rows(x0, turn):
+    """Rows of the wall and of the cube, its centre standing at x0, turning ``turn`` about z
+    from square to the wall: its reach along x is 0.1 (cos a + sin a) at angle a."""
+    poses = np.zeros((2, 2, 7))
+    poses[..., 6] = 1.0
+    poses[:, 1, 0] = x0
+    poses[1, 1, 5:] = math.sin(turn / 2), math.cos(turn / 2)
+    return _core.path_rows_between(poses[0], poses[1], np.arange(2, dtype=np.int64), np.arange(2, dtype=np.int64),
+                                   np.stack([np.eye(4)] * 2), np.array([WALL, CUBE], dtype=float))
+
+
+@pytest.mark.parametrize("dip, wrong", [(0.0214, True), (0.005, False)])
+def test_a_link_box_swinging_into_a_wall_and_out_again(dip, wrong):
+    """A link box turning a quarter turn in the step, apart from the 2 cm wall at both ends:
+    its edge sweeps 2.14 cm into the wall at the middle of the step (through it: pybullet,
+    which sees only the step's end, never meets that contact) and is acted on from its
+    first depth; one whose edge dips 5 mm in, short of the wall's middle, is pybullet's, as
+    a link's contact that ends merely deep is."""
+    x0 = -0.01 - 0.1 * math.sqrt(2) + dip
+    touch, act, c, *_ = judge_link(swinging_rows(x0, math.pi / 2))
+    assert c is not None
+    # The edge reaches the face when 0.1 sqrt(2) sin(a + pi/4) = -0.01 - x0 (a = turn so far);
+    # the touch is the sweep's, on a fit of the turn: never late.
+    angle = math.asin((-0.01 - x0) / (0.1 * math.sqrt(2))) - math.pi / 4
+    assert 0.0 < touch <= angle / (math.pi / 2)
+    if wrong:
+        angle = math.asin((-0.01 + PENETRATION - x0) / (0.1 * math.sqrt(2))) - math.pi / 4
+        assert act == pytest.approx(angle / (math.pi / 2), abs=1e-6)
+    else:
+        assert np.isnan(act)
+
+
 def test_a_link_box_that_stays_apart_has_no_contact():
     touch, act, c, *_ = judge_link(rows(WALL, (0, 0), CUBE, (-0.5, -0.2)))
     assert np.isnan(touch) and np.isnan(act) and c is None

@@ -154,7 +154,12 @@ LinkJudgement judge_link_contact(const BoxPath &a, const BoxPath &b, double fit_
     const double d1 = pose_separation(Xa, ha, Xb, hb, axis1.data());
     if (!(out.pressing && d1 < target && d1 >= 0.0)) {
         const double act = first_depth(a, b, out.touch, target);
-        if (!std::isnan(act) && link_goes_wrong(a, b, act, Xa, Xb, d1, axis1)) out.act = act;
+        // Apart at the end on the side it came from, but past the middle of the thinner box on
+        // the way (a link swinging through a plate and out again within the step): pybullet
+        // never sees that contact.
+        if (!std::isnan(act) && (link_goes_wrong(a, b, act, Xa, Xb, d1, axis1) ||
+                                 (d1 <= 0.0 && !std::isnan(first_depth(a, b, act, thin)))))
+            out.act = act;
     }
     if (out.contact.facet < 0) {
         path_separation(a, b, out.touch, out.normal.data());
