@@ -554,8 +554,9 @@ def test_a_teleport_shorter_than_a_free_box_moves_unswept_is_left_to_pybullet(ci
 
 def test_a_shape_left_to_pybullet_is_named_once_a_fast_box_comes_near_it(cid):
     """BoxCCD sweeps boxes against boxes: a thin static cylinder in a fast box's way is
-    named (once), a sphere and a plane out of its reach are not, nor is anything while the
-    box is slow."""
+    named (once), a sphere and a plane out of its reach are not (the sphere lies between
+    the cube and a second fast box, well out of both's reach), nor is anything while the
+    boxes are slow."""
     for speed, named in ((0.5, []), (100.0, ["body 0 link -1 (cylinder)"])):
         reset(cid)
         p.createMultiBody(0, p.createCollisionShape(p.GEOM_CYLINDER, radius=1.0, height=0.01, physicsClientId=cid),
@@ -565,7 +566,9 @@ def test_a_shape_left_to_pybullet_is_named_once_a_fast_box_comes_near_it(cid):
         p.createMultiBody(0, p.createCollisionShape(p.GEOM_PLANE, physicsClientId=cid), basePosition=[0, 0, -5],
                           physicsClientId=cid)
         cube = box(cid, [0.05] * 3, [-1, 0, 0])
-        throw(cid, cube, speed=speed, spin=(0, 0, 0))
+        other = box(cid, [0.05] * 3, [-1, 20, 0])
+        for b in (cube, other):
+            throw(cid, b, speed=speed, spin=(0, 0, 0))
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
             run(cid, True, 10)
@@ -711,17 +714,22 @@ def test_a_disconnected_client_is_a_typed_error_and_a_reconnected_one_is_named()
         p.disconnect(again)
 
 
-def test_a_fast_box_at_pybullets_velocity_clamp_is_named_once(cid):
-    """pybullet clamps a body's speed to 100 m/s by default (maxJointVelocity): a box
-    given 150 m/s moves at 100, and BoxCCD says so once; one given 150 with the clamp
-    lifted moves faster and nothing is said."""
+@pytest.mark.parametrize("given", [(150.0, 0.0, 0.0), (110.0, 30.0, -20.0)])
+def test_a_fast_box_at_pybullets_velocity_clamp_is_named_once(cid, given):
+    """pybullet clamps each component of a body's velocity to 100 m/s by default
+    (maxJointVelocity): a box given 150 m/s, or (110, 30, -20) (cut to (100, 29.4,
+    -19.6), its speed 105.7), moves at the clamp along x, and BoxCCD says so once; one
+    given as much with the clamp lifted moves faster and nothing is said; nor of one
+    given (60, 60, 60) (104 m/s, no component at the clamp)."""
     reset(cid)
     data = pybullet_data.getDataPath()
     clamped = p.loadURDF(os.path.join(data, "cube_small.urdf"), [0, 0, 0], physicsClientId=cid)
     lifted = p.loadURDF(os.path.join(data, "cube_small.urdf"), [0, 5, 0], physicsClientId=cid)
+    under = p.loadURDF(os.path.join(data, "cube_small.urdf"), [0, -5, 0], physicsClientId=cid)
     p.changeDynamics(lifted, -1, maxJointVelocity=1000, physicsClientId=cid)
     for b in (clamped, lifted):
-        p.resetBaseVelocity(b, [150, 0, 0], [0, 0, 0], physicsClientId=cid)
+        p.resetBaseVelocity(b, given, [0, 0, 0], physicsClientId=cid)
+    p.resetBaseVelocity(under, [60, 60, 60], [0, 0, 0], physicsClientId=cid)
     ccd = BoxCCD(cid)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")

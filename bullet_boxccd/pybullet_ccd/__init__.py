@@ -479,15 +479,16 @@ class BoxCCD:
                                                   "that contact and the box can pass through it")
 
     def _at_clamp(self, frames):
-        """Fast frames moving or turning at exactly pybullet's default velocity clamp, of bodies
-        whose clamp was not changed (changeDynamics(maxJointVelocity=...))."""
+        """Fast frames with a velocity or spin component at exactly pybullet's default velocity
+        clamp (pybullet cuts each on its own), of bodies whose clamp was not changed
+        (changeDynamics(maxJointVelocity=...))."""
         for f in frames:
             b = self.world.tables.keys[f][0]
             if self.world.maximal(b) or self.world.journal.max_velocity.get(b, MAX_VELOCITY) != MAX_VELOCITY:
                 continue  # pybullet clamps multibodies only, and this one's clamp was moved
-            self._warn(("clamp", b), f"body {b} moves or turns at {MAX_VELOCITY:g} (m/s, rad/s), pybullet's default "
-                                     "velocity clamp: if it was given more, pybullet cut it to that "
-                                     f"(p.changeDynamics({b}, -1, maxJointVelocity=...) lifts it)")
+            self._warn(("clamp", b), f"body {b} moves or turns at {MAX_VELOCITY:g} (m/s, rad/s) along a world axis, "
+                                     "pybullet's default velocity clamp: if it was given more, pybullet cut it to "
+                                     f"that (p.changeDynamics({b}, -1, maxJointVelocity=...) lifts it)")
 
     def _chains_find(self, h):
         if not self._chains.bodies:

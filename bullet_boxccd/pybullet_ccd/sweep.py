@@ -87,10 +87,11 @@ def sweep(cid, tables, state, dt, fit_tolerance, tolerances, penetration, stats,
     bounds = None  # the fast boxes' swept bounds, once asked for
     if near_unswept is not None:
         _, bounds = sweeper.rows(dt, fast)
-        reach = bounds[:, :3].min(axis=0).tolist() + bounds[:, 3:].max(axis=0).tolist()
-        near = [key for key in map(tuple, overlap_query(cid, reach, slack)) if key in tables.unswept]
+        # Each fast box's own swept bounds (their union can span a room between two of them).
+        near = {key for box in bounds.tolist() for key in map(tuple, overlap_query(cid, box, slack))
+                if key in tables.unswept}
         if near:
-            near_unswept(near)
+            near_unswept(sorted(near))
     t1 = time.perf_counter()
     stats.seconds["state"] += t1 - t0
     boxes, all_others = fast, False

@@ -178,8 +178,10 @@ std::vector<int64_t> Sweeper::at_speed(const std::vector<int64_t> &frames, doubl
     for (const int64_t f : frames) {
         check_index(f, n_frames(), "frame");
         const double *row = state_.data() + kFrameStateSize * f;
-        const double v = norm3(row + FrameState::kVelocity), w = norm3(row + FrameState::kAngularVelocity);
-        if (std::fabs(v - speed) <= rel_tol * speed || std::fabs(w - speed) <= rel_tol * speed) out.push_back(f);
+        // pybullet clamps each component of a body's velocity and spin (world axes) on its own.
+        const double *twist = row + FrameState::kVelocity;  // v, w
+        if (std::any_of(twist, twist + 6, [&](double c) { return std::fabs(std::fabs(c) - speed) <= rel_tol * speed; }))
+            out.push_back(f);
     }
     return out;
 }
