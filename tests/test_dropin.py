@@ -741,6 +741,25 @@ def test_a_fast_box_at_pybullets_velocity_clamp_is_named_once(cid, given):
     assert p.getBaseVelocity(lifted, physicsClientId=cid)[0][0] > 100.5  # not clamped (damped a little)
 
 
+def test_a_boxccd_kept_across_reset_simulation_names_the_new_worlds_conditions(cid):
+    """What BoxCCD said of a world is forgotten when pybullet resets it: a cube at the
+    velocity clamp in each of three worlds built in turn in one client is named in each."""
+    reset(cid)
+    ccd = BoxCCD(cid)
+    said = []
+    for _ in range(3):
+        reset(cid)
+        cube = p.loadURDF(os.path.join(pybullet_data.getDataPath(), "cube_small.urdf"), [0, 0, 0],
+                          physicsClientId=cid)
+        p.resetBaseVelocity(cube, [150, 0, 0], [0, 0, 0], physicsClientId=cid)
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            for _ in range(3):
+                ccd.step()
+        said.append(sum(issubclass(w.category, BoxCCDWarning) for w in caught))
+    assert said == [1, 1, 1]
+
+
 # -------------------------------------------------------------------- layout
 def test_named_columns_agree_with_the_core():
     core = _core.layouts()

@@ -124,17 +124,19 @@ class BoxCCD:
             raise InvalidInputError(f"tolerances: expected a Tolerances, got {type(tolerances).__name__}")
         self.tolerances = tolerances
         self.stats = CCDStats()
-        self._warned = set()
+        self._warned = set()  # what was said of this world (forgotten when it is reset)
         self._warn = warn_once(self._warned)
-        if self.sweep_threshold > 1.0:
-            self._warn(("sweep_threshold",), f"sweep_threshold = {self.sweep_threshold:g}: a box that moves less "
-                                             "than that many of its extents (and less than sweep_distance) a step "
-                                             "is not swept, and can skip a wall thinner than its move")
+        if self.sweep_threshold > 1.0:  # (of the knob, not of the world: said once)
+            warn_once(set())(("sweep_threshold",),
+                             f"sweep_threshold = {self.sweep_threshold:g}: a box that moves less than that many of "
+                             "its extents (and less than sweep_distance) a step is not swept, and can skip a wall "
+                             "thinner than its move")
         bodies = _bodies(self.cid, self_collision_bodies, "self_collision_bodies")
         self.world = World(self.cid, bodies, self._warn)
         self.contacts = Contacts(self.cid, self.penetration, self.depth_tolerance, self.fit_tolerance,
                                  self.tolerances, self.stats)
         self._params_seen = -1
+        self._reset_seen = self.world.journal.reset
         self._moves_seen = self.world.journal.last_move  # moves made while building the world are not sweeps
         self._quiet, self._epoch = False, -1  # whether a step may skip every check (see step)
         self._known = False  # whether the frame-state rows hold the velocities the next step starts from
@@ -152,6 +154,10 @@ class BoxCCD:
         self._sync()
 
     def _sync(self):
+        j = self.world.journal
+        if j.reset > self._reset_seen:  # resetSimulation: a new world, of which nothing was said yet
+            self._warned.clear()
+            self._reset_seen = j.reset
         if self.world.sync():
             self.stats.rediscoveries += 1
             t = self.world.tables
@@ -171,7 +177,6 @@ class BoxCCD:
             if self.penetration >= 0.1 * small:
                 self._warn(("penetration", small), f"penetration = {self.penetration:g} m is not small against "
                                                   f"the thinnest tracked box (half extent {small:g} m)")
-        j = self.world.journal
         if j.params > self._params_seen or j.reset > self._params_seen:
             params = raw.getPhysicsEngineParameters(physicsClientId=self.cid)
             self._dt, self._substeps = params["fixedTimeStep"], max(int(params.get("numSubSteps", 0)), 1)
