@@ -7,6 +7,7 @@ id, masses changed, substeps, and every bad argument."""
 
 from __future__ import annotations
 
+import math
 import os
 import warnings
 
@@ -461,34 +462,91 @@ def test_a_removed_body_takes_the_forces_given_to_it_along(cid, given, substeps)
     assert ends[True] == ends[False]
 
 
-def test_a_step_of_no_time_or_of_a_time_not_above_zero_is_pybullets(cid):
-    """pybullet steps whatever fixedTimeStep it is given (0 moves nothing; a negative step
-    runs the world backwards): BoxCCD takes such a step as pybullet does, names one it
-    cannot sweep, and sweeps again once the step is a time above zero."""
+@pytest.mark.parametrize("substeps", [0, 4])
+@pytest.mark.parametrize("bad", [-DT, math.inf, math.nan])
+def test_a_step_of_a_time_not_above_zero_is_pybullets(cid, substeps, bad):
+    """pybullet steps whatever fixedTimeStep it is given: a step below 0 runs the world
+    backwards, or, with substeps, leaves pybullet's substep clock owing that time (the next
+    steps do not move until it is paid); one not finite leaves the world's state not finite.
+    BoxCCD takes such a step, and after the last two kinds every later one, as pybullet does
+    (r2d2 falling in the world too), and names it once."""
     ends = {}
     for use in (False, True):
-        reset(cid)
+        reset(cid, gravity=-9.81)
+        p.setPhysicsEngineParameter(numSubSteps=substeps, physicsClientId=cid)
         box(cid, [0.005, 1, 1], [0, 0, 0], mass=0.0)
         cube = box(cid, [0.05] * 3, [-0.5, 0, 0])
         throw(cid, cube, speed=3.0)
+        robot = p.loadURDF(os.path.join(pybullet_data.getDataPath(), "r2d2.urdf"), [0, -2, 1], physicsClientId=cid)
         ccd = BoxCCD(cid) if use else None
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
             states = []
-            for dt, steps in ((0.0, 3), (-DT, 3), (DT, 3)):
+            for dt in (DT, bad, DT, DT, DT):
                 p.setTimeStep(dt, physicsClientId=cid)
-                for _ in range(steps):
-                    ccd.step() if ccd else p.stepSimulation(physicsClientId=cid)
-                    states.append(p.getBasePositionAndOrientation(cube, physicsClientId=cid))
-        ends[use] = states
+                ccd.step() if ccd else p.stepSimulation(physicsClientId=cid)
+                poses = [p.getBasePositionAndOrientation(b, physicsClientId=cid) for b in (cube, robot)]
+                states.append([x for pose in poses for part in pose for x in part])
+        ends[use] = np.array(states)
         if use:
             named = [str(w.message) for w in caught if issubclass(w.category, BoxCCDWarning)]
-            assert len(named) == 1 and f"fixedTimeStep is {-DT!r}" in named[0], named
-    assert ends[True] == ends[False]
-    throw(cid, cube, speed=300.0)  # the step is a time again: swept
-    for _ in range(10):
-        ccd.step()
-    assert x_of(cid, cube) < 0.0
+            assert len(named) == 1 and f"fixedTimeStep is {bad!r}" in named[0], named
+    p.setPhysicsEngineParameter(numSubSteps=0, physicsClientId=cid)
+    np.testing.assert_array_equal(ends[True], ends[False])
+
+
+def test_a_robot_given_a_velocity_not_finite_is_stepped_by_pybullet_alone(cid):
+    """pybullet takes a NaN velocity and steps the body on, not finite: BoxCCD names the
+    body once and leaves it to pybullet (it raised ValueError on such a robot), and the
+    rest of the world goes on as in pybullet alone."""
+    ends = {}
+    for use in (False, True):
+        reset(cid, gravity=-9.81)
+        robot = p.loadURDF(os.path.join(pybullet_data.getDataPath(), "r2d2.urdf"), [0, -2, 1], physicsClientId=cid)
+        cube = box(cid, [0.05] * 3, [0, 0, 0.5])
+        ccd = BoxCCD(cid) if use else None
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            for k in range(5):
+                if k == 1:
+                    p.resetBaseVelocity(robot, [math.nan, 0, 0], [0, 0, 0], physicsClientId=cid)
+                ccd.step() if ccd else p.stepSimulation(physicsClientId=cid)
+        poses = [p.getBasePositionAndOrientation(b, physicsClientId=cid) for b in (robot, cube)]
+        ends[use] = np.array([x for pose in poses for part in pose for x in part])
+        if use:
+            named = [str(w.message) for w in caught if issubclass(w.category, BoxCCDWarning)]
+            assert len(named) == 1 and f"body {robot}: its state in pybullet is not finite" in named[0], named
+    np.testing.assert_array_equal(ends[True], ends[False])
+
+
+def test_a_step_of_no_time_changes_nothing(cid):
+    """pybullet's step of 0 s moves nothing: inserted after any of the steps of three cubes
+    striking a 1 cm wall at 40-90 m/s, it leaves BoxCCD's run as it was (what the impact left
+    for the next step stands), and is named nowhere."""
+    def run(zero_after):
+        reset(cid)
+        box(cid, [0.005, 1, 1], [0, 0, 0], mass=0.0)
+        rng = np.random.default_rng(4)
+        cubes = [box(cid, [0.05] * 3, [-0.3 - 0.25 * i, rng.uniform(-0.3, 0.3), rng.uniform(-0.3, 0.3)],
+                     orn=p.getQuaternionFromEuler(rng.uniform(-1, 1, 3))) for i in range(3)]
+        for cube in cubes:
+            p.changeDynamics(cube, -1, restitution=0.5, physicsClientId=cid)
+            p.resetBaseVelocity(cube, [rng.uniform(40, 90), 0, 0], rng.normal(0, 20, 3).tolist(), physicsClientId=cid)
+        ccd = BoxCCD(cid)
+        with warnings.catch_warnings():
+            warnings.simplefilter("error", BoxCCDWarning)
+            for k in range(10):
+                ccd.step()
+                if k == zero_after:
+                    p.setTimeStep(0.0, physicsClientId=cid)
+                    ccd.step()
+                    p.setTimeStep(DT, physicsClientId=cid)
+        return [p.getBasePositionAndOrientation(b, physicsClientId=cid) + p.getBaseVelocity(b, physicsClientId=cid)
+                for b in cubes], ccd.stats.partial_steps
+    (base, partial) = run(None)
+    assert partial >= 3
+    for k in range(6):
+        assert run(k)[0] == base, k
 
 
 def batch_scene(cid, use, speed):

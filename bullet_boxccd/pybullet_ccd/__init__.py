@@ -137,6 +137,7 @@ class BoxCCD:
                                  self.tolerances, self.stats)
         self._params_seen = -1
         self._reset_seen = self.world.journal.reset
+        self._alone = False  # pybullet steps the world alone (see _unswept_step)
         self._moves_seen = self.world.journal.last_move  # moves made while building the world are not sweeps
         self._quiet, self._epoch = False, -1  # whether a step may skip every check (see step)
         self._known = False  # whether the frame-state rows hold the velocities the next step starts from
@@ -158,6 +159,7 @@ class BoxCCD:
         if j.reset > self._reset_seen:  # resetSimulation: a new world, of which nothing was said yet
             self._warned.clear()
             self._reset_seen = j.reset
+            self._alone = False
         if self.world.sync():
             self.stats.rediscoveries += 1
             t = self.world.tables
@@ -272,7 +274,8 @@ class BoxCCD:
             self.stats.steps += 1
         # A world where no moving box can meet another is stepped by pybullet alone (its own
         # substeps too); one with substeps or a kinematic velocity otherwise takes the full path.
-        self._quiet = not self._state.with_velocity and (self._substeps == 1 or not self._watched) and self._timed()
+        self._quiet = (not self._state.with_velocity and (self._substeps == 1 or not self._watched) and self._timed()
+                       and not self._alone)
         self._epoch = last_serial()
         return events
 
@@ -280,11 +283,8 @@ class BoxCCD:
         self._check_connected()
         self._sync()
         dt, n = self._dt, self._substeps
-        if not self._timed():
-            if dt != 0.0:  # (a step of no time moves nothing)
-                self._warn(("dt", dt), f"the world's fixedTimeStep is {dt!r}: BoxCCD sweeps steps of a finite "
-                                       "time > 0 only, and pybullet takes this one alone (p.setTimeStep)")
-            return self._pybullet_alone()
+        if self._alone or not self._timed():
+            return self._unswept_step(dt, n, struck)
         if n == 1:
             return self._step(dt, 0.0, dt, struck)
         if not self._watched and not self._state.with_velocity:
@@ -302,6 +302,27 @@ class BoxCCD:
     def _timed(self):
         """The world's step is a finite time > 0 (pybullet steps any other too)."""
         return math.isfinite(self._dt) and self._dt > 0.0
+
+    def _unswept_step(self, dt, n, struck):
+        """A step BoxCCD does not sweep, pybullet's alone: of no time (it moves nothing, and
+        what the last step left stands), of a time below 0 or not finite (named once), and
+        every step after one of those in a world with substeps or after one not finite
+        (named once): pybullet's substep clock then owes the time it went back, or the
+        world's state is not finite, which BoxCCD cannot follow, until resetSimulation."""
+        if dt == 0.0 and not self._alone:
+            raw.stepSimulation(physicsClientId=self.cid)
+            self._struck_next = struck
+            return []
+        if not self._alone and (n > 1 or not math.isfinite(dt)):
+            self._alone = True
+            with_substeps = f" with numSubSteps = {n}" if n > 1 else ""
+            self._warn(("alone",), f"the world's fixedTimeStep is {dt!r}{with_substeps}: after such a step pybullet's "
+                                   "substep clock, or the world's state, is not one BoxCCD can follow, so pybullet "
+                                   "takes this step and every later one alone, unswept, until p.resetSimulation")
+        elif not self._alone:
+            self._warn(("dt", repr(dt)), f"the world's fixedTimeStep is {dt!r}: BoxCCD sweeps steps of a finite time "
+                                         "> 0 only, and pybullet takes this one alone (p.setTimeStep)")
+        return self._pybullet_alone()
 
     def _pybullet_alone(self):
         """A step of pybullet alone (its own substeps too): no box that moves can meet another."""

@@ -177,6 +177,12 @@ class Articulated:
             # A fixed joint has no coordinates: the moving joints' are the flat q and qdot.
             q = np.array([x for s in js for x in s[0]], dtype=np.float64)
             rec.qdot = np.array([x for s in js for x in s[1]], dtype=np.float64)
+            if not (np.isfinite(rec.base_state).all() and np.isfinite(q).all() and np.isfinite(rec.qdot).all()):
+                # (a NaN or infinite velocity the user set, or a step of a time not finite)
+                self._warn(("not finite", rec.body), f"body {rec.body}: its state in pybullet is not finite (NaN or "
+                                                     "infinite): pybullet steps it alone, unswept")
+                rec.motion = rec.base_state = None
+                continue
             if np.any(np.abs(rec.qdot) == MAX_VELOCITY) and \
                     self._max_velocity.get(rec.body, MAX_VELOCITY) == MAX_VELOCITY:
                 self._at_clamp(rec)
@@ -219,6 +225,8 @@ class Articulated:
         fast = []
         for rec in self.watched:
             rec.fast = False  # until a fast box of it is judged against a partner
+            if rec.motion is None:  # its state is not finite: pybullet's alone
+                continue
             moves = rec.motion.fast_boxes(rec.box_links, rec.box_X, rec.box_half, rec.box_reach)
             fast += [(rec, *rec.boxes[k], bounds) for k, _, bounds in moves]
         if not fast:
@@ -306,6 +314,8 @@ class Articulated:
         boxes, bounds = [i for _, _, i, _ in fast], [b for *_, b in fast]
         for b in bodies:
             rec = self.bodies[b]
+            if rec.motion is None:
+                continue
             for k, _, box in rec.motion.fast_boxes(rec.box_links, rec.box_X, rec.box_half,
                                                    np.full(len(rec.boxes), -np.inf)):
                 boxes.append(rec.boxes[k][1])

@@ -87,11 +87,12 @@ def sweep(cid, tables, state, dt, fit_tolerance, tolerances, penetration, stats,
     bounds = None  # the fast boxes' swept bounds, once asked for
     if near_unswept is not None:
         _, bounds = sweeper.rows(dt, fast)
-        # Each fast box's own swept bounds (their union can span a room between two of them).
-        near = {key for box in bounds.tolist() for key in map(tuple, overlap_query(cid, box, slack))
-                if key in tables.unswept}
+        reach = bounds[:, :3].min(axis=0).tolist() + bounds[:, 3:].max(axis=0).tolist()
+        near = [key for key in map(tuple, overlap_query(cid, reach, slack)) if key in tables.unswept]
+        # Those within a fast box's own swept bounds (the union of them can span a room).
+        near = [key for key in near if _within(raw.getAABB(*key, physicsClientId=cid), bounds, slack)]
         if near:
-            near_unswept(sorted(near))
+            near_unswept(near)
     t1 = time.perf_counter()
     stats.seconds["state"] += t1 - t0
     boxes, all_others = fast, False
@@ -125,6 +126,14 @@ def sweep(cid, tables, state, dt, fit_tolerance, tolerances, penetration, stats,
         allowed = set(map(tuple, pairs.tolist()))
         hits = [h for h in hits if h[:2] in allowed]
     return Sweep(rows, boxes, pairs, hits) if hits else None
+
+
+def _within(aabb, bounds, slack):
+    """Whether AABB ((x0, y0, z0), (x1, y1, z1)) meets any of the bounds (n, 6), widened as
+    ``overlap_query`` widens them."""
+    lo, hi = np.asarray(aabb[0], float), np.asarray(aabb[1], float)
+    w = slack + _QUERY_WIDEN * np.abs(bounds).max(axis=1, keepdims=True)
+    return bool(np.any(np.all(bounds[:, :3] - w <= hi, axis=1) & np.all(bounds[:, 3:] + w >= lo, axis=1)))
 
 
 def _partners(cid, tables, bounds, slack, exclude):
