@@ -462,6 +462,11 @@ def test_a_removed_body_takes_the_forces_given_to_it_along(cid, given, substeps)
     assert ends[True] == ends[False]
 
 
+def _flat_poses(cid, bodies):
+    """The bodies' base positions and orientations, one flat list."""
+    return [x for b in bodies for part in p.getBasePositionAndOrientation(b, physicsClientId=cid) for x in part]
+
+
 @pytest.mark.parametrize("substeps", [0, 4])
 @pytest.mark.parametrize("bad", [-DT, math.inf, math.nan])
 def test_a_step_of_a_time_not_above_zero_is_pybullets(cid, substeps, bad):
@@ -485,8 +490,7 @@ def test_a_step_of_a_time_not_above_zero_is_pybullets(cid, substeps, bad):
             for dt in (DT, bad, DT, DT, DT):
                 p.setTimeStep(dt, physicsClientId=cid)
                 ccd.step() if ccd else p.stepSimulation(physicsClientId=cid)
-                poses = [p.getBasePositionAndOrientation(b, physicsClientId=cid) for b in (cube, robot)]
-                states.append([x for pose in poses for part in pose for x in part])
+                states.append(_flat_poses(cid, (cube, robot)))
         ends[use] = np.array(states)
         if use:
             named = [str(w.message) for w in caught if issubclass(w.category, BoxCCDWarning)]
@@ -511,8 +515,7 @@ def test_a_robot_given_a_velocity_not_finite_is_stepped_by_pybullet_alone(cid):
                 if k == 1:
                     p.resetBaseVelocity(robot, [math.nan, 0, 0], [0, 0, 0], physicsClientId=cid)
                 ccd.step() if ccd else p.stepSimulation(physicsClientId=cid)
-        poses = [p.getBasePositionAndOrientation(b, physicsClientId=cid) for b in (robot, cube)]
-        ends[use] = np.array([x for pose in poses for part in pose for x in part])
+        ends[use] = np.array(_flat_poses(cid, (robot, cube)))
         if use:
             named = [str(w.message) for w in caught if issubclass(w.category, BoxCCDWarning)]
             assert len(named) == 1 and f"body {robot}: its state in pybullet is not finite" in named[0], named

@@ -363,8 +363,8 @@ class Contacts:
         elif paths.stoppable(fa) or paths.stoppable(fb) or (back and (push_a or push_b)):
             # A pair still pressing in after the world went back to it twice in this step is
             # one pybullet's solver does not hold: going back again would only repeat that.
-            again = initial and self._presses.get((int(fa), int(fb)), 0) >= PRESSES
-            action = "back" if back and not again else "stop"
+            held = initial and self._presses.get((int(fa), int(fb)), 0) >= PRESSES
+            action = "back" if back and not held else "stop"
         else:
             action = None
         c, wrong, s_act, normal, parted, again = _core.judge_contact(
