@@ -11,8 +11,8 @@ the cube's and the block's speed after 0.05 s, and the first step (of 1/240 s) a
 which the cube's back face is past the block's front face (through).
 
 It is the README's known limit on the velocity clamp: BoxCCD holds the pair at its
-contact step after step (each step taken back to it), until the step's partial steps
-no longer hold it, where the converged engine slows the cube within a step.
+contact, and its few solves a step (each kept: the clamp cut it) slow the cube over
+steps, where the converged engine's thousands slow it within a step.
 
 Run
 ---

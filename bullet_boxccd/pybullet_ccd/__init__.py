@@ -134,7 +134,7 @@ class BoxCCD:
         bodies = _bodies(self.cid, self_collision_bodies, "self_collision_bodies")
         self.world = World(self.cid, bodies, self._warn)
         self.contacts = Contacts(self.cid, self.penetration, self.depth_tolerance, self.fit_tolerance,
-                                 self.tolerances, self.stats)
+                                 self.tolerances, self.stats, self._clamped)
         self._params_seen = -1
         self._reset_seen = self.world.journal.reset
         self._alone = False  # pybullet steps the world alone (see _unswept_step)
@@ -503,6 +503,19 @@ class BoxCCD:
                 self._warn(("unswept", b, link), f"body {b} link {link} ({what}) is in the reach of a fast box: "
                                                   "BoxCCD sweeps boxes against boxes only, so pybullet alone meets "
                                                   "that contact and the box can pass through it")
+
+    def _clamped(self, frames):
+        """Those of the free frames whose velocity or spin pybullet's velocity clamp cut in the
+        (partial) step just taken: a component of it, read after the step, at the body's
+        clamp (its maxJointVelocity; a body in maximal coordinates has none)."""
+        w = self.world
+        out = set()
+        for f in frames:
+            b, link = w.tables.keys[f]
+            if link == -1 and not w.maximal(b):
+                clamp = w.journal.max_velocity.get(b, MAX_VELOCITY)
+                out.update(self._state.sweeper.at_speed([f], clamp, 1e-9))
+        return out
 
     def _at_clamp(self, frames):
         """Fast frames with a velocity or spin component at exactly pybullet's default velocity

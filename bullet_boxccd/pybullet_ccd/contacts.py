@@ -24,6 +24,12 @@ state at the end of the step decides:
   its own at that time instead, with its velocity there; pybullet resolves it as the
   next step begins, where a pair stopped at an impact is struck (its impulse acts whole
   then, as for the pair a partial step begins at).
+* A body's velocity where the world goes back to is in proportion between its velocities
+  before and after the (partial) step, as the rest of the step adds its share of the
+  solve again; but whole (after the step, less the rest's gravity) for a pair that the
+  step began at an impact of, and for a pair pressing in while touching whose solve
+  pybullet's velocity clamp cut: the clamp cuts the next solve from the same velocities,
+  and only kept do successive solves take its approach, as a fine step's do.
 
 Kinematic bodies (a fixed base the user teleports) cannot be taken back: a free body a
 teleport swept into is carried with it from the touch and leaves with the velocity of
@@ -134,15 +140,16 @@ class _Paths:
         p = _core.frame_poses(self.state.rows[f][None], self.dt, np.zeros(1, dtype=np.int64), np.array([tau]))[0]
         return pose_matrix(p[:3], p[3:])
 
-    def stop(self, f, tau):
+    def stop(self, f, tau, whole=False):
         """Frame f stands still from tau on, with the velocity it had at tau, as the world
-        going back there would give it (``Contacts._world_to``): kept from after the step, a
-        stopped body would gain a step's gravity every step it stands."""
+        going back there would give it (``Contacts._world_to``; ``whole``: that of a body
+        struck at the start of the step): kept from after the step, a stopped body would gain
+        a step's gravity every step it stands."""
         tr = self.track[f]
         tr.frozen = self.com(f, tau)
         if tr.velocity is None:
             st = self.state
-            mode = 2 if st.twist0 is None or f in self.struck else 1
+            mode = 2 if st.twist0 is None or whole or f in self.struck else 1
             v, w, _ = st.sweeper.velocities_at(self.dt, tau, [f], [mode], st.twist0, self.gravity, self.tables.damping)
             tr.velocity = (v[0], w[0])
         for r in tr.rows:
@@ -178,9 +185,12 @@ class _Paths:
 class Contacts:
     """The step's contacts in time order (see the module docstring)."""
 
-    def __init__(self, cid, penetration, depth_tolerance, fit_tolerance, tolerances, stats):
+    def __init__(self, cid, penetration, depth_tolerance, fit_tolerance, tolerances, stats, clamped):
+        """``clamped(frames)``: those of the frames whose velocity pybullet's velocity clamp cut
+        in the (partial) step just taken."""
         self.cid, self.penetration, self.depth_tolerance = cid, penetration, depth_tolerance
         self.fit_tolerance, self.tolerances, self.stats = fit_tolerance, tolerances, stats
+        self.clamped = clamped
 
     def resolve(self, sw, jw, tables, state, dt, user_moved, gravity, back=True, horizon=1.0, struck=(), presses=None):
         """Events of the step's sweep ``sw`` and of the kinematic jumps' sweep ``jw`` (either
@@ -196,7 +206,7 @@ class Contacts:
         if it is an impact: met inside the step); without ``back``, the frames stopped at an
         impact are left in ``self.struck``."""
         kinematic = set(state.kinematic)
-        events, self.struck, self.acted = [], set(), set()
+        events, self.struck, self.acted, self._cut = [], set(), set(), set()
         self._presses = {} if presses is None else presses
         pushed = self._jumps(jw, tables, state, dt, kinematic, user_moved, events) if jw is not None else {}
         paths = _Paths(sw, tables, state, dt, kinematic, struck, gravity) if sw is not None and sw.hits else None
@@ -211,7 +221,7 @@ class Contacts:
         if paths is not None:
             tau = min(tau, self._time_order(paths, sw, user_moved, events, back, tau))
         if back and tau < 1.0:
-            self._world_to(paths, tables, state, dt, gravity, tau, struck)
+            self._world_to(paths, tables, state, dt, gravity, tau, set(struck) | self._cut)
         elif paths is not None:
             self._apply(paths, tables, state)
         return events, tau
@@ -299,12 +309,14 @@ class Contacts:
                 self._report(paths, i, j, info, True, events)
                 # A contact met inside the step is an impact: its impulse acts whole as the
                 # partial step begins. The next press of a pair already touching is not (its
-                # impulse kept whole at every go back would pump energy into the pair).
+                # impulse kept whole at every go back would pump energy into the pair), unless
+                # the clamp cut it (``_clamp_cut``).
                 key = (int(paths.frame[i]), int(paths.frame[j]))
                 if info["initial"]:
                     self._presses[key] = self._presses.get(key, 0) + 1
+                    self._cut = self._clamp_cut(key)
                 self.acted = set(key)
-                self.struck = set() if info["initial"] else self.acted
+                self.struck = self.acted if self._cut or not info["initial"] else set()
                 return tau_r
             changed = self._act(paths, i, j, tau_r, info, user_moved)
             self._report(paths, i, j, info, bool(changed), events)
@@ -408,11 +420,21 @@ class Contacts:
             paths.track[d].velocity = (v, paths.twist(d)[1])
             return [d]
         changed = [f for f in (fa, fb) if paths.stoppable(f)]
+        whole = info["initial"] and bool(self._clamp_cut((fa, fb)))
         for f in changed:
-            paths.stop(f, tau)
+            paths.stop(f, tau, whole)
         if not info["initial"]:  # an impact: pybullet's solver meets it as the next step begins
             self.struck.update(changed)
         return changed
+
+    def _clamp_cut(self, pair):
+        """The frames of a pair pressing in while touching whose velocities stay whole where it
+        is taken back to (its bodies', if pybullet's velocity clamp cut one of them in the
+        step; else none). Taken in proportion, the solve of the step would be undone there,
+        and the clamp cuts it again from the same velocities at the next solve: the pair would
+        press in again from the same state, step after step. Kept, each solve takes more of the
+        approach, as at the successive solves of a fine step."""
+        return set(pair) if self.clamped(pair) else set()
 
     def _report(self, paths, i, j, info, acted, events):
         c = info["contact"]
