@@ -13,7 +13,8 @@ state at the end of the step decides:
 
 * Left to pybullet: the pair touched when the window began and ends less than
   ``depth_tolerance`` deeper without going wrong, or it met inside the window and ends
-  it overlapping by less than ``depth_tolerance`` on the right side.
+  it overlapping by less than ``depth_tolerance`` on the right side; in either case
+  without going past the thinner box's middle on the way (``_core.judge_contact``).
 * Otherwise the world is taken back to the time the pair first overlaps by
   ``penetration`` on Bullet's own path (a pair already touching: by a creep more than it
   began with), and ``BoxCCD`` simulates the rest of the step from there, so that

@@ -5,7 +5,8 @@
 // From a pair's state at the end of a window of the step, that goes wrong when the boxes
 // end deeper than a tolerance, when the least axis points out of the far side of the box
 // whose face was struck, when the second box has gone in past half the pair's depth along
-// the contact normal, or when the boxes end apart but overlapped deeply on the way (a
+// the contact normal, when the boxes end apart but overlapped deeply on the way, or when
+// they end in a shallow overlap but went past the thinner box's middle on the way (a
 // contact pybullet never saw).
 #pragma once
 
