@@ -143,9 +143,9 @@ class _Paths:
 
     def stop(self, f, tau, whole=False):
         """Frame f stands still from tau on, with the velocity it had at tau, as the world
-        going back there would give it (``Contacts._world_to``; ``whole``: that of a body
-        struck at the start of the step): kept from after the step, a stopped body would gain
-        a step's gravity every step it stands."""
+        going back there would give it (``Contacts._world_to``; ``whole``: its velocity after
+        the step, less the rest's gravity, as for a struck body): kept from after the step
+        whatever its contact, a stopped body would gain a step's gravity every step it stands."""
         tr = self.track[f]
         tr.frozen = self.com(f, tau)
         if tr.velocity is None:
