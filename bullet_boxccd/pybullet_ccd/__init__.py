@@ -408,8 +408,11 @@ class BoxCCD:
 
     def _spin(self):
         """The fastest spin (rad/s) of the frames of the contact the world was taken back to."""
-        spins = self._state.rows[list(self._acted), ANGULAR_VELOCITY].tolist()
-        return max((math.sqrt(x * x + y * y + z * z) for x, y, z in spins), default=0.0)
+        rows, most = self._state.rows, 0.0
+        for f in self._acted:
+            x, y, z = rows[f, ANGULAR_VELOCITY].tolist()
+            most = max(most, math.sqrt(x * x + y * y + z * z))
+        return most
 
     def _within_clamp(self, piece, h):
         """After a partial step of ``piece`` seconds: if the impact at its start spun a body of

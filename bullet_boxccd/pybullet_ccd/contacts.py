@@ -526,11 +526,12 @@ class Contacts:
 def _place_all(cid, tables, state, frames, poses, v, w):
     """Put free frames' bodies at ``poses`` (n, 7: centre of mass position, quaternion)
     with velocities v, w (n, 3), in pybullet and in the frame-state rows."""
+    keys, reset_pose, reset_velocity = tables.keys, raw.resetBasePositionAndOrientation, raw.resetBaseVelocity
     for f, pose, vf, wf in zip(frames, poses.tolist(), v.tolist(), w.tolist()):
-        b = tables.keys[f][0]
-        raw.resetBasePositionAndOrientation(b, pose[:3], pose[3:], physicsClientId=cid)
-        raw.resetBaseVelocity(b, vf, wf, physicsClientId=cid)
-    state.rows[frames, POSE], state.rows[frames, VELOCITY], state.rows[frames, ANGULAR_VELOCITY] = poses, v, w
+        b = keys[f][0]
+        reset_pose(b, pose[:3], pose[3:], physicsClientId=cid)
+        reset_velocity(b, vf, wf, physicsClientId=cid)
+    state.rows[frames] = np.concatenate((poses, v, w), axis=1)  # a row: pose, velocity, angular velocity
 
 
 # ------------------------------------------------------- shared with articulated.py
