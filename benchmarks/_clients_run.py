@@ -137,6 +137,7 @@ class Record:
     step_ns: list = field(default_factory=list)  # per routed stepSimulation: wall time (ns)
     env_ns: list = field(default_factory=list)  # per env.step (envs): wall time (ns), whatever the variant
     step_swept: list = field(default_factory=list)  # per routed stepSimulation (ccd): boxes it swept
+    first_act: int = -1  # (ccd) index in ``poses`` of the first env step / tick in which BoxCCD took a contact back
     boxccd_warnings: list = field(default_factory=list)  # (message, filename:lineno)
     other_warnings: list = field(default_factory=list)  # from bullet_boxccd, not BoxCCDWarning
     stats: dict = field(default_factory=dict)  # per client id: ccd.stats as a dict
@@ -199,7 +200,7 @@ class Router:
                 t0 = time.perf_counter()
                 ccd = self.ccds[cid] = BoxCCD(cid, **self.ccd_kwargs)
                 self.record.construct_s[cid] = time.perf_counter() - t0
-            swept = ccd.stats.swept_boxes
+            swept, rewinds = ccd.stats.swept_boxes, ccd.stats.rewinds
             self.inside = True
             try:
                 if self.profiler is not None:
@@ -212,6 +213,8 @@ class Router:
             finally:
                 self.inside = False
             self.record.step_swept.append(ccd.stats.swept_boxes - swept)
+            if ccd.stats.rewinds > rewinds and self.record.first_act < 0:
+                self.record.first_act = len(self.record.poses)
             if self.categories is not None:
                 self.record.step_groups.append((t1 - t0, *self.categories.now))
                 self.categories.now[:] = [0, 0, 0]

@@ -637,6 +637,24 @@ def test_a_shape_left_to_pybullet_is_named_once_a_fast_box_comes_near_it(cid):
         assert [m.split(" is in the reach")[0] for m in messages] == named, messages
 
 
+def test_a_box_whose_state_is_not_finite_is_named_once_and_left_to_pybullet(cid):
+    """A free box given a NaN velocity is named in one warning and left to pybullet; a fast
+    cube beside it is still stopped at the wall."""
+    reset(cid)
+    box(cid, [0.005, 1, 1], [0, 0, 0], mass=0.0)
+    broken = box(cid, [0.05] * 3, [-1.0, 0.5, 0])
+    cube = box(cid, [0.05] * 3, [-0.5, 0, 0])
+    throw(cid, cube)
+    p.resetBaseVelocity(broken, [float("nan"), 0, 0], physicsClientId=cid)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        run(cid, True, 10)
+    messages = [str(w.message) for w in caught if issubclass(w.category, BoxCCDWarning)]
+    assert messages == [f"body {broken}: its state in pybullet is not finite (NaN or infinite): pybullet steps it "
+                        "alone, unswept"], messages
+    assert x_of(cid, cube) < 0.0
+
+
 def test_body_made_dynamic_with_change_dynamics_is_swept(cid):
     through = {False: 0, True: 0}
     for use in (False, True):

@@ -399,18 +399,25 @@ for arg in sys.argv[1:]:
             data = p.getCollisionShapeData(b, i - 1, physicsClientId=cid)
             theirs = [(0.5 * np.array(d[3]), np.array(d[5]), np.array(p.getMatrixFromQuaternion(d[6])).reshape(3, 3))
                       for d in data if d[2] == p.GEOM_BOX]  # pybullet's own frames: the reference, on purpose
+            # a plane: its normal and origin, world-free (pybullet's normal is in its shape's frame)
+            planes = [(np.array(p.getMatrixFromQuaternion(d[6])).reshape(3, 3) @ d[3], np.array(d[5]))
+                      for d in data if d[2] == p.GEOM_PLANE]
             err = 0.0
             if len(theirs) == len(lk.boxes):
                 for (h, X), (h2, t2, R2) in zip(lk.boxes, theirs):
                     err = max(err, np.abs(h - h2).max(), np.abs(X[:3, 3] - t2).max(), np.abs(X[:3, :3] - R2).max())
-            rows.append(dict(file=path, flags=int(flags), body=b, link=i - 1, name=lk.name, ours=len(lk.boxes),
-                             theirs=len(theirs), err=err, others=[len(lk.others), len(data) - len(theirs)]))
+            if len(planes) == len(lk.planes):
+                for X, (n2, t2) in zip(lk.planes, planes):
+                    err = max(err, np.abs(X[:3, 2] - n2).max(), np.abs(X[:3, 3] - t2).max())
+            rows.append(dict(file=path, flags=int(flags), body=b, link=i - 1, name=lk.name,
+                             ours=[len(lk.boxes), len(lk.planes)], theirs=[len(theirs), len(planes)], err=err,
+                             others=[len(lk.others), len(data) - len(theirs) - len(planes)]))
 print("\nRESULT " + json.dumps(rows))
 '''
 
 
 def test_mjcf_boxes_are_pybullets_own_boxes(tmp_path):
-    """The boxes read from the file, on every link of every model (pybullet_data/mjcf and a
+    """The boxes and planes read from the file, on every link of every model (pybullet_data/mjcf and a
     file with every feature the reader follows: nested bodies, joints that add links or
     drop them, inertial frames and fromto shifts, quat / axisangle (euler and a box's
     fromto ignored, as pybullet does), default classes, root-level geoms, and
@@ -429,8 +436,9 @@ def test_mjcf_boxes_are_pybullets_own_boxes(tmp_path):
     mine = [r for r in rows if r["file"] == str(features)]
     # 9 boxes in pybullet's bodies (the ball joint's is not); with flags 0 the link with a
     # fromto capsule is not asked (it would crash), so 8 are compared there.
-    assert [sum(r["ours"] for r in mine if r["flags"] == fl) for fl in (0, implicit, implicit | ordered)] == [8, 9, 9]
-    assert sum(r["ours"] for r in rows) > 30
+    boxes = [sum(r["ours"][0] for r in mine if r["flags"] == fl) for fl in (0, implicit, implicit | ordered)]
+    assert boxes == [8, 9, 9]
+    assert sum(r["ours"][0] for r in rows) > 30 and sum(r["ours"][1] for r in rows) > 5  # boxes; planes
 
 
 def test_mjcf_groups_and_masks_are_pybullets():

@@ -219,12 +219,14 @@ def test_fast_boxes_and_slack():
     boxes = [(f, np.eye(4), np.full(3, 0.1)) for f in range(3)]
     sweeper = sweeper_of(boxes, np.full(3, 0.2), [15 * DT, 15 * DT, 0.0], 3)
     sweeper.state[:] = states
-    fast, slack, frames = sweeper.fast(DT)
-    assert fast == [1] and frames == [1] and slack == pytest.approx(10 * DT)
+    fast, slack, frames, broken = sweeper.fast(DT)
+    assert fast == [1] and frames == [1] and slack == pytest.approx(10 * DT) and broken == [2]
     # pybullet's velocity reads written first: frame 1 stops, frame 0 speeds up to 20 m/s.
-    fast, _, frames = sweeper.fast(DT, [0, 1], [((20.0, 0.0, 0.0), (0.0, 0.0, 0.0)), ((0.0,) * 3, (0.0,) * 3)])
+    fast, _, frames, _ = sweeper.fast(DT, [0, 1], [((20.0, 0.0, 0.0), (0.0, 0.0, 0.0)), ((0.0,) * 3, (0.0,) * 3)])
     assert fast == [0] and frames == [0] and sweeper.state[0, 7] == 20.0 and sweeper.state[1, 12] == 0.0
     sweeper.state[0, 7] = 0.0
+    assert sweeper.fast(DT) == ([], 0.0, [], [2])  # nothing fast, one frame not finite
+    sweeper.state[2, 7] = 0.0
     assert sweeper.fast(DT) is None
 
 

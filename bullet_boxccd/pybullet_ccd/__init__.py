@@ -168,7 +168,7 @@ class BoxCCD:
                                        self.world.journal.max_velocity)
             rigid_reach = self._sweep_reach.copy()
             rigid_reach[self._chains.boxes] = math.inf  # swept on their own paths (articulated)
-            self._state = FrameState(self.cid, t, rigid_reach, self._chains.frames)
+            self._state = FrameState(self.cid, t, rigid_reach, self._chains.frames, self._not_finite)
             self._others = Others(self.cid, self.world.journal, t.other_rigid, t.other_chains, t.other_fixed,
                                   t.other_stuck, self._warn, self.world.damping)
             self._watched = bool(self._state.moving) or bool(self._chains.watched)
@@ -255,7 +255,7 @@ class BoxCCD:
             st.begin(self._known)
             raw.stepSimulation(physicsClientId=cid)
             self._known = True
-            fast = st.sweeper.fast(self._dt, st.moving, st.twists()) if st.moving else None
+            fast = st.fast(self._dt, read=True) if st.moving else None
             if fast is None and (not self._chains.watched or self._chains.idle(self._dt, st)):
                 return []
             sw = None
@@ -506,6 +506,13 @@ class BoxCCD:
                 self._warn(("unswept", b, link), f"body {b} link {link} ({what}) is in the reach of a fast box: "
                                                   "BoxCCD sweeps boxes against boxes only, so pybullet alone meets "
                                                   "that contact and the box can pass through it")
+
+    def _not_finite(self, frames):
+        """Frames whose state pybullet left not finite: their bodies named once each."""
+        for f in frames:
+            b = self.world.tables.keys[f][0]
+            self._warn(("not finite", b), f"body {b}: its state in pybullet is not finite (NaN or infinite): pybullet "
+                                          "steps it alone, unswept")
 
     def _clamped(self, frames):
         """Those of the free frames whose velocity or spin pybullet's velocity clamp cut in the

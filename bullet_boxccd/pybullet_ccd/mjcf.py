@@ -59,6 +59,7 @@ class MjcfLink:
 
     name: str
     boxes: list = field(default_factory=list)  # [(half (3,), X_CS (4, 4))] in the link's centre-of-mass frame
+    planes: list = field(default_factory=list)  # [X_CS (4, 4)]: a plane's frame (normal +z) in that frame
     others: list = field(default_factory=list)  # geometry names of its other shapes
     multisphere: bool = False  # it has a shape getCollisionShapeData crashes on
     group_mask: tuple | None = None  # (contype, conaffinity) of its last geom; None: no geom
@@ -322,6 +323,8 @@ def _finish(model: _Model, flags) -> MjcfModel | None:
         for kind, half, X_LG, group, mask, multisphere in lk.collisions:
             if kind == "box":
                 out.boxes.append((half, inverse @ X_LG))
+            elif kind == "plane":
+                out.planes.append(inverse @ X_LG)
             else:
                 out.others.append(kind)
             out.multisphere |= multisphere

@@ -37,7 +37,8 @@ import pybullet
 from ..motion import pose_matrix
 from ._hooks import raw
 
-__all__ = ["multibody_boxes", "probe_boxes", "fit_rounded_box", "Shadow", "NOT_A_BOX", "SPHERE", "THIN"]
+__all__ = ["multibody_boxes", "plane_box", "probe_boxes", "fit_rounded_box", "Shadow", "NOT_A_BOX", "SPHERE", "THIN",
+           "PLANE_HALF"]
 
 NOT_A_BOX, SPHERE = "not a box", "sphere"
 THIN = "a box thinner than twice its collision margin"
@@ -46,13 +47,36 @@ _FAR = 64.0  # probe distance, in sizes of the body's bounding box: far enough t
 _REL = 1e-9  # relative tolerance of the fit's checks
 
 
-def multibody_boxes(cid, body, link):
+# A plane is a half-space to Bullet: one on a fixed base is swept as a cube of this half
+# extent whose top face is the plane, so a box moving within 100 km of the plane's origin
+# meets it where Bullet's plane is met (the solver counts boxes closer than 1e-12 of their
+# sizes as touching: 2e-7 m here, below the 1e-5 m overlap a contact is acted on at).
+PLANE_HALF = 1e5
+
+
+def plane_box(normal, X):
+    """(half extents (3,), X_CS (4, 4)) of the half-space under the plane through the
+    origin of frame X (4, 4, in the link's centre-of-mass frame) with ``normal`` (in X)."""
+    n = np.asarray(normal, float) / np.linalg.norm(normal)
+    a = np.array([1.0, 0.0, 0.0]) if abs(n[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
+    x = np.cross(a, n)
+    x /= np.linalg.norm(x)
+    X_PB = np.eye(4)
+    X_PB[:3, :3] = np.column_stack([x, np.cross(n, x), n])
+    X_PB[:3, 3] = -PLANE_HALF * n
+    return np.full(3, PLANE_HALF), X @ X_PB
+
+
+def multibody_boxes(cid, body, link, planes=False):
     """(boxes, others) of a multibody link: boxes [(half extents (3,), X_CS (4, 4))] in the
-    link's centre-of-mass frame, and the geometry types of its other shapes."""
+    link's centre-of-mass frame (with ``planes``, its planes too, as ``plane_box``es), and
+    the geometry types of its other shapes."""
     boxes, others = [], []
     for d in raw.getCollisionShapeData(body, link, physicsClientId=cid):
         if d[2] == pybullet.GEOM_BOX:
             boxes.append((0.5 * np.asarray(d[3], float), pose_matrix(d[5], d[6])))
+        elif d[2] == pybullet.GEOM_PLANE and planes:  # its dimensions are the plane's normal
+            boxes.append(plane_box(d[3], pose_matrix(d[5], d[6])))
         else:
             others.append(d[2])
     return boxes, others
@@ -92,7 +116,8 @@ class Shadow:
         try:
             shadow = ids[index]
             links = range(-1, raw.getNumJoints(shadow, physicsClientId=self.cid))
-            return {lk: multibody_boxes(self.cid, shadow, lk)[0] for lk in links}
+            static = raw.getDynamicsInfo(shadow, -1, physicsClientId=self.cid)[0] == 0.0
+            return {lk: multibody_boxes(self.cid, shadow, lk, planes=static and lk == -1)[0] for lk in links}
         finally:
             for b in ids:
                 raw.removeBody(b, physicsClientId=self.cid)

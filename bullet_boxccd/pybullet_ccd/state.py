@@ -44,8 +44,8 @@ def _readers(cid, body, link):
 class FrameState:
     """The (F, 13) state of every frame after the current step, and the kinematic frames."""
 
-    def __init__(self, cid, tables, sweep_reach, articulated=frozenset()):
-        self.cid, self.tables = cid, tables
+    def __init__(self, cid, tables, sweep_reach, articulated=frozenset(), not_finite=lambda frames: None):
+        self.cid, self.tables, self._not_finite = cid, tables, not_finite
         f = tables.filters
         # The core's sweeper holds the box tables and the rows (``rows`` is a numpy view of
         # them): a step's calls into the core pass no array.
@@ -75,6 +75,18 @@ class FrameState:
         them (``known``: they were read after the last step, or set since, and the user
         changed nothing in between)."""
         self.twist0 = self.rows[:, TWIST].copy() if known else None
+
+    def fast(self, dt, read=False):
+        """``Sweeper.fast`` of a step of dt (the moving frames' velocities read first, with
+        ``read``): (fast boxes, slack, their frames), or None. Frames whose state pybullet
+        left not finite, which pybullet alone steps, are told to ``not_finite``."""
+        found = self.sweeper.fast(dt, self.moving, self.twists()) if read else self.sweeper.fast(dt)
+        if found is None:
+            return None
+        boxes, slack, frames, broken = found
+        if broken:
+            self._not_finite(broken)
+        return (boxes, slack, frames) if boxes else None
 
     def twists(self) -> list:
         """pybullet's velocity reads of the moving frames, as they come."""

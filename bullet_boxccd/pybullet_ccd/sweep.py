@@ -73,7 +73,7 @@ def sweep(cid, tables, state, dt, fit_tolerance, tolerances, penetration, stats,
     within the fast boxes' reach."""
     sweeper = state.sweeper
     if fast is None:
-        fast = sweeper.fast(dt)
+        fast = state.fast(dt)
         if fast is None:
             stats.seconds["state"] += time.perf_counter() - t0
             return None

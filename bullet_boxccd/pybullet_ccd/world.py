@@ -40,7 +40,7 @@ from . import mjcf
 from ._hooks import damping, journal, new_serial, raw
 from .events import BoxCCDWarning
 from .filters import Filters, default_group_mask
-from .shapes import SPHERE, Shadow, multibody_boxes, probe_boxes
+from .shapes import SPHERE, Shadow, multibody_boxes, plane_box, probe_boxes
 
 __all__ = ["STATIC", "FREE", "LINK", "World", "Tables"]
 
@@ -93,7 +93,8 @@ class Tables:
     filters: Filters
     free_frames: list  # the free bodies' frames
     # (body, link) -> what: the shapes left to pybullet that a fast box can pass through
-    # (all but planes, which are half-spaces, and soft bodies)
+    # (all but soft bodies, and planes on a moving frame: a plane's reach is everywhere; one
+    # on a fixed base is swept, as a half-space: shapes.plane_box)
     unswept: dict
     damping: np.ndarray  # (F, 2): its body's linear and angular damping, as Bullet damps a free base
     # Bodies with no frame here (others.py): free single ones, articulated ones, fixed bases
@@ -213,7 +214,7 @@ class World:
                                          "maximal-coordinate body (getNumJoints is 0, getLinkState gives nothing); "
                                          "make it with useMaximalCoordinates=False to have them swept")
         for link in range(-1, n_joints):
-            boxes, why = self._frame_boxes(b, link, rec, shadow, from_file)
+            boxes, why = self._frame_boxes(b, link, rec, shadow, from_file, static=link == -1 and fixed_base)
             if why is not None:
                 rec.unreadable.append((link, why))
             if not boxes:
@@ -274,21 +275,23 @@ class World:
         return any(_MJCF_JOINT.match(raw.getJointInfo(b, j, physicsClientId=self.cid)[1].decode("utf-8", "replace"))
                    for j in range(n_joints))
 
-    def _frame_boxes(self, b, link, rec, shadow, from_file=None):
-        """(boxes, why unreadable or None) of one frame; shapes left to pybullet are noted."""
+    def _frame_boxes(self, b, link, rec, shadow, from_file=None, static=False):
+        """(boxes, why unreadable or None) of one frame; shapes left to pybullet are noted.
+        ``static``: a fixed base, whose planes are swept as the half-spaces they are."""
         if (b, link) in self.registered:
             return self.registered[(b, link)][1], None
         if from_file is not None:
             lk = from_file.get(link)
             if lk is None:
                 return [], None
-            rec.left.extend((link, what) for what in lk.others)
-            return list(lk.boxes), None
+            planes = [plane_box((0.0, 0.0, 1.0), X) for X in lk.planes] if static else []
+            rec.left.extend((link, what) for what in lk.others + ([] if static else ["plane"] * len(lk.planes)))
+            return list(lk.boxes) + planes, None
         if self.journal.link_geometry.get(b, {}).get(link) == pybullet.GEOM_HEIGHTFIELD:
             rec.left.append((link, "heightfield"))  # getCollisionShapeData would print an error for it
             return [], None
         if not rec.maximal:
-            boxes, others = multibody_boxes(self.cid, b, link)
+            boxes, others = multibody_boxes(self.cid, b, link, planes=static)
             rec.left.extend((link, _GEOMETRY.get(g, str(g))) for g in others)
             return boxes, None
         if shadow is not None:

@@ -180,8 +180,8 @@ void init_sweeper(Sweeper *self, const Index<-1> &box_frame, const In<-1> &radiu
 nb::object sweeper_fast(Sweeper &s, double dt, nb::handle frames, nb::handle twists) {
     if (!frames.is_none()) put_twists(s, frames, twists);
     const Sweeper::Fast f = s.fast(dt);
-    if (f.boxes.empty()) return nb::none();
-    return nb::make_tuple(to_list(f.boxes), f.slack, to_list(f.frames));
+    if (f.boxes.empty() && f.broken.empty()) return nb::none();
+    return nb::make_tuple(to_list(f.boxes), f.slack, to_list(f.frames), to_list(f.broken));
 }
 
 // (n, 6): velocity_at of each row of `after` (n, 6: v, w after the step; the velocities

@@ -160,7 +160,10 @@ Sweeper::Fast Sweeper::fast(double dt) const {
     for (size_t i = 0; i < n_; ++i) {
         const int64_t f = box_frame_[i];
         const double r = step_reach(state_.data() + kFrameStateSize * f, dt, radius_[i]);
-        if (!std::isfinite(r)) continue;  // a broken body (pybullet's NaN) is left to pybullet
+        if (!std::isfinite(r)) {  // a broken body (pybullet's NaN) is left to pybullet
+            out.broken.push_back(f);
+            continue;
+        }
         if (r > sweep_reach_[i]) {
             out.boxes.push_back(int64_t(i));
             out.frames.push_back(f);
@@ -170,6 +173,8 @@ Sweeper::Fast Sweeper::fast(double dt) const {
     }
     std::sort(out.frames.begin(), out.frames.end());
     out.frames.erase(std::unique(out.frames.begin(), out.frames.end()), out.frames.end());
+    std::sort(out.broken.begin(), out.broken.end());
+    out.broken.erase(std::unique(out.broken.begin(), out.broken.end()), out.broken.end());
     return out;
 }
 

@@ -101,6 +101,7 @@ class Sweeper {
     struct Fast {
         std::vector<int64_t> boxes, frames;
         double slack = 0.0;
+        std::vector<int64_t> broken;  // frames whose state is not finite (pybullet's alone)
     };
     Fast fast(double dt) const;
 
