@@ -37,8 +37,7 @@ import pybullet
 from ..motion import pose_matrix
 from ._hooks import raw
 
-__all__ = ["multibody_boxes", "plane_box", "probe_boxes", "fit_rounded_box", "Shadow", "NOT_A_BOX", "SPHERE", "THIN",
-           "PLANE_HALF"]
+__all__ = ["multibody_boxes", "plane_box", "probe_boxes", "fit_rounded_box", "Shadow", "NOT_A_BOX", "SPHERE", "THIN"]
 
 NOT_A_BOX, SPHERE = "not a box", "sphere"
 THIN = "a box thinner than twice its collision margin"
