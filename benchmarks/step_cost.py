@@ -10,12 +10,14 @@ For each family of ``benchmarks/fidelity.py`` named (its scenes and seeds), ever
 
 A second run of the same seeds times, inside those steps, every call to a pybullet
 function and to the core (module functions and ``Sweeper`` methods), wrapped for the run:
-``pybullet`` and ``core`` are their shares, ``python`` the rest, the plugin's own
-Python (its bookkeeping, numpy on small arrays, the wrappers' own cost). ``pybullet`` plus
-``core`` is what a step of that kind would cost if the plugin's Python took no time: the
-floor of this design over pybullet's per-body API. ``plain`` and ``sub16`` are pybullet's
-own step and ``numSubSteps=16`` on the same scenes in the same run (the fastest of three
-runs per seed, as in ``fidelity.py``).
+``pybullet`` and ``core`` are their shares of that run's time (less what the wrappers
+themselves add, measured on a wrapped no-op), ``python`` the rest, the plugin's own Python
+(its bookkeeping, numpy on small arrays).
+``floor`` is the step's time times the pybullet and core shares: what a step of that kind
+would cost if the plugin's Python took no time, the floor of this design over pybullet's
+per-body API. ``plain`` and ``sub16`` are pybullet's own step and ``numSubSteps=16`` on
+the same scenes in the same run (each step's time: the fastest of three runs per seed, as
+in ``fidelity.py``).
 
 Run
 ---
@@ -53,6 +55,7 @@ class _Clock:
     def __init__(self):
         self.on, self.spent, self.calls = False, defaultdict(int), defaultdict(int)
         self._undo = []
+        self.overhead = self._calibrate()
         for name, fn in vars(_hooks.raw).items():
             self._wrap(_hooks.raw, name, fn, "pybullet")
         for name in dir(_core):
@@ -77,6 +80,24 @@ class _Clock:
 
         setattr(owner, name, timed)
         self._undo.append((owner, name, fn))
+
+    def _calibrate(self, n=20000):
+        """ns a wrapped call costs outside its timed part (what the run adds to ``python``)."""
+        holder = type("Holder", (), {"noop": staticmethod(len)})
+        self._wrap(holder, "noop", len, "calibration")
+        args, clock = ((),), time.perf_counter_ns
+        self.on = True
+        best = []
+        for fn in (len, holder.noop):
+            t0 = clock()
+            for _ in range(n):
+                fn(*args)
+            best.append(clock() - t0)
+        self.on = False
+        self._undo.pop()
+        inside = self.spent.pop("calibration") / n
+        self.calls.pop("calibration")
+        return max((best[1] - best[0]) / n - inside, 0.0)
 
     def restore(self):
         for owner, name, fn in self._undo:
@@ -114,6 +135,7 @@ def run_seed(fam_key, variant, seed, cid, clock=None):
         before = (ccd.stats.partial_steps, ccd.stats.swept_boxes)
         if clock is not None:
             clock.spent.clear()
+            clock.calls.clear()
             clock.on = True
         t0 = time.perf_counter_ns()
         ccd.step()
@@ -121,7 +143,9 @@ def run_seed(fam_key, variant, seed, cid, clock=None):
         if clock is not None:
             clock.on = False
         spent = clock.spent if clock is not None else {}
-        out[_kind(k, ccd.stats, before)].append((us, spent.get("pybullet", 0) / 1e3, spent.get("core", 0) / 1e3))
+        wrappers = sum(clock.calls.values()) * clock.overhead if clock is not None else 0.0
+        out[_kind(k, ccd.stats, before)].append((us - wrappers / 1e3, spent.get("pybullet", 0) / 1e3,
+                                                 spent.get("core", 0) / 1e3))
         w.t = (k + 1) * fam.dt
         fam.observe(w, s, k)
     return out
@@ -149,17 +173,18 @@ def report(fam_key, variant, seeds, cid, repeats):
     print(f"\n{fam.label} ({variant}), {seeds} seeds, dt = {fam.dt:.4g} s: BoxCCD {total / n_steps:.1f} us a step "
           f"(x{total / n_steps / base['plain']:.1f} plain), plain {base['plain']:.1f}, "
           f"numSubSteps=16 {base['sub16']:.1f} (x{base['sub16'] / base['plain']:.1f})")
-    print(f"  {'step':10s} {'steps':>6s} {'us':>9s} {'share':>6s} {'pybullet':>9s} {'core':>8s} {'python':>8s} "
-          f"{'floor':>8s}")
+    print(f"  {'step':10s} {'steps':>6s} {'us':>9s} {'share':>6s} {'pybullet':>9s} {'core':>6s} {'python':>7s} "
+          f"{'floor us':>9s}")
     order = ["first", "not fast", "swept", "back x1", "back x2", "back x3", "back x4+"]
+    floor_total = 0.0
     for kind in sorted(bare, key=order.index):
-        us = np.mean(bare[kind])
-        wrapped = np.array(parts[kind])
-        t, pb, core = wrapped.mean(axis=0)
-        print(f"  {kind:10s} {len(bare[kind]):6d} {us:9.1f} {np.sum(bare[kind]) / total:6.0%} {pb:9.1f} {core:8.1f} "
-              f"{t - pb - core:8.1f} {pb + core:8.1f}")
-    floor = sum(np.array(parts[k])[:, 1:].sum() for k in parts) / n_steps
-    print(f"  floor (pybullet + core, every step): {floor:.1f} us a step (x{floor / base['plain']:.1f} plain)")
+        t, pb, core = np.array(parts[kind]).sum(axis=0)
+        floor = np.sum(bare[kind]) * (pb + core) / t
+        floor_total += floor
+        print(f"  {kind:10s} {len(bare[kind]):6d} {np.mean(bare[kind]):9.1f} {np.sum(bare[kind]) / total:6.0%} "
+              f"{pb / t:9.0%} {core / t:6.0%} {1 - (pb + core) / t:7.0%} {floor / len(bare[kind]):9.1f}")
+    floor = floor_total / n_steps
+    print(f"  floor, every step: {floor:.1f} us a step (x{floor / base['plain']:.1f} plain)")
 
 
 def main(argv=None):
