@@ -2,7 +2,8 @@
 
 Frames are centre-of-mass frames: ``getCollisionShapeData`` gives a box's full
 extents and its frame relative to the link's centre-of-mass frame, and
-``getBasePositionAndOrientation`` / ``getLinkState(...)[0:2]`` give those frames.
+``getBasePositionAndOrientation`` / ``getLinkState(...)[0:2]`` give those frames. A plane
+on a fixed base is a half-space, and is given as a box too (``plane_box``).
 
 Maximal-coordinate bodies (``useMaximalCoordinates=True``) do not answer
 ``getCollisionShapeData`` (pybullet prints "getCollisionShapeData failed" at C level

@@ -15,7 +15,8 @@ last step are read again; filters are re-derived when they changed; a world that
 did not see (a call through a reference taken before this package was imported) also
 triggers a full read.
 
-Where a body's boxes come from: ``getCollisionShapeData`` for a multibody, except a body
+Where a body's boxes come from (a fixed base's planes too, as half-space boxes:
+``shapes.plane_box``): ``getCollisionShapeData`` for a multibody, except a body
 ``loadMJCF`` made (that call can kill the process on it: its boxes are read from the file,
 ``mjcf.py``) and a link whose shape the journal knows is a heightfield (pybullet prints an
 error when asked: left to pybullet); a shadow multibody or closest-point probes for a
