@@ -655,6 +655,24 @@ def test_a_box_whose_state_is_not_finite_is_named_once_and_left_to_pybullet(cid)
     assert x_of(cid, cube) < 0.0
 
 
+def test_a_plane_of_normal_zero_is_left_to_pybullet_unnamed(cid):
+    """Bullet's plane of normal 0 meets nothing: a box falls through it as in pybullet,
+    and nothing is named (its half-space has no side to be under)."""
+    paths, caught = [], []
+    for use in (False, True):
+        reset(cid, gravity=-9.81)
+        p.createMultiBody(0, p.createCollisionShape(p.GEOM_PLANE, planeNormal=[0, 0, 0], physicsClientId=cid),
+                          physicsClientId=cid)
+        cube = box(cid, [0.05] * 3, [0, 0, 0.5])
+        p.resetBaseVelocity(cube, [0, 0, -30], physicsClientId=cid)
+        with warnings.catch_warnings(record=True) as w:
+            warnings.simplefilter("always")
+            run(cid, use, 20)
+        caught += [str(x.message) for x in w if issubclass(x.category, BoxCCDWarning)]
+        paths.append(p.getBasePositionAndOrientation(cube, physicsClientId=cid))
+    assert paths[0] == paths[1] and paths[0][0][2] < -1.0 and not caught, (paths, caught)
+
+
 def test_body_made_dynamic_with_change_dynamics_is_swept(cid):
     through = {False: 0, True: 0}
     for use in (False, True):

@@ -216,7 +216,8 @@ def test_a_tumbling_die_stays_as_close_to_the_converged_engine_as_plain(cid, gro
 
 # ------------------------------------------------------------------ planes
 def plane_throw(cid, seed, ground, use, fine=1):
-    """pybullet_data's jenga block (restitution 0.5) thrown at 30-150 m/s, up to 40 deg off
+    """pybullet_data's jenga block (restitution 0.5; the plane's is 0, so pybullet combines
+    them to 0) thrown at 30-150 m/s, up to 40 deg off
     the normal, turned at random and spinning up to 15 rad/s, at a plane: pybullet's
     GEOM_PLANE with its normal tilted 20 deg and its frame off the body's origin, or the
     plane of mjcf/hello_mjcf.xml. Returns (the deepest end-of-step penetration, the

@@ -30,6 +30,7 @@ sphere, which is left to pybullet without a warning).
 
 from __future__ import annotations
 
+import math
 from itertools import combinations, product
 
 import numpy as np
@@ -67,6 +68,12 @@ def plane_box(normal, X):
     return np.full(3, PLANE_HALF), X @ X_PB
 
 
+def _normal(v) -> bool:
+    """Whether v can be a plane's normal (a plane of normal 0 meets nothing in Bullet)."""
+    n = float(np.linalg.norm(v))
+    return math.isfinite(n) and n > 0.0
+
+
 def multibody_boxes(cid, body, link, planes=False):
     """(boxes, others) of a multibody link: boxes [(half extents (3,), X_CS (4, 4))] in the
     link's centre-of-mass frame (with ``planes``, its planes too, as ``plane_box``es), and
@@ -75,7 +82,7 @@ def multibody_boxes(cid, body, link, planes=False):
     for d in raw.getCollisionShapeData(body, link, physicsClientId=cid):
         if d[2] == pybullet.GEOM_BOX:
             boxes.append((0.5 * np.asarray(d[3], float), pose_matrix(d[5], d[6])))
-        elif d[2] == pybullet.GEOM_PLANE and planes:  # its dimensions are the plane's normal
+        elif d[2] == pybullet.GEOM_PLANE and planes and _normal(d[3]):  # its dimensions are the plane's normal
             boxes.append(plane_box(d[3], pose_matrix(d[5], d[6])))
         else:
             others.append(d[2])
