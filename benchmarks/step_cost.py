@@ -5,7 +5,7 @@ For each family of ``benchmarks/fidelity.py`` named (its scenes and seeds), ever
 
 * ``first``: the first step, which reads the world (bodies, shapes, filters),
 * ``not fast``: no box could move its sweep reach (pybullet's step and the velocity reads),
-* ``swept``: a sweep of the fast boxes that took the world back to no contact,
+* ``swept``: a sweep of the fast boxes that found nothing to take the world back to,
 * ``back xN``: the world went back to contacts, N partial steps in all.
 
 A second run of the same seeds times, inside those steps, every call to a pybullet
