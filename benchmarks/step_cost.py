@@ -124,7 +124,8 @@ def _kind(k, stats, before):
 
 
 def run_seed(fam_key, variant, seed, cid, clock=None):
-    """{kind: [(us, pybullet us, core us), ...]} over the seed's steps."""
+    """{kind: [(microseconds of the step, of its pybullet calls, of its core calls), ...]} over the
+    seed's steps."""
     fam, w, s = _build(fam_key, variant, seed, cid)
     control = getattr(s, "control", None)
     ccd = BoxCCD(cid)

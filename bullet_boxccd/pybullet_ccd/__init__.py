@@ -45,7 +45,7 @@ from ..solver import DEFAULT_TOLERANCES, InvalidInputError, Tolerances
 from ._hooks import MAX_VELOCITY, last_serial, raw, replay_impulses
 from .articulated import Articulated
 from .contacts import PRESSES, Contacts
-from .events import BoxCCDWarning, CCDEvent, CCDStats, ClientDisconnectedError
+from .events import BoxCCDWarning, CCDEvent, CCDStats, ClientDisconnectedError, not_finite_message
 from .layout import ANGULAR_VELOCITY
 from .others import Others
 from .state import FrameState
@@ -510,8 +510,7 @@ class BoxCCD:
         """Frames whose state pybullet left not finite: their bodies named once each."""
         for f in frames:
             b = self.world.tables.keys[f][0]
-            self._warn(("not finite", b), f"body {b}: its state in pybullet is not finite (NaN or infinite): pybullet "
-                                          "steps it alone, unswept")
+            self._warn(("not finite", b), not_finite_message(b))
 
     def _clamped(self, frames):
         """Those of the free frames whose velocity or spin pybullet's velocity clamp cut in the

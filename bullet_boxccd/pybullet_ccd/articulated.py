@@ -41,7 +41,7 @@ from ..solver import Outcome
 from ._hooks import MAX_VELOCITY, raw
 from .chain import read_chain
 from .contacts import bounce, place
-from .events import CCDEvent
+from .events import CCDEvent, not_finite_message
 from .layout import ANGULAR_VELOCITY, POSE, TWIST, VELOCITY
 from .others import joint_layout, put_body
 from .sweep import CREEP, overlap_query
@@ -179,8 +179,7 @@ class Articulated:
             rec.qdot = np.array([x for s in js for x in s[1]], dtype=np.float64)
             if not (np.isfinite(rec.base_state).all() and np.isfinite(q).all() and np.isfinite(rec.qdot).all()):
                 # (a NaN or infinite velocity the user set, or a step of a time not finite)
-                self._warn(("not finite", rec.body), f"body {rec.body}: its state in pybullet is not finite (NaN or "
-                                                     "infinite): pybullet steps it alone, unswept")
+                self._warn(("not finite", rec.body), not_finite_message(rec.body))
                 rec.motion = rec.base_state = None
                 continue
             if np.any(np.abs(rec.qdot) == MAX_VELOCITY) and \

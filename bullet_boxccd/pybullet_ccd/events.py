@@ -22,6 +22,11 @@ class ClientDisconnectedError(RuntimeError):
     same id is another world: make a BoxCCD for it)."""
 
 
+def not_finite_message(body) -> str:
+    """The warning for a body whose state pybullet left not finite."""
+    return f"body {body}: its state in pybullet is not finite (NaN or infinite): pybullet steps it alone, unswept"
+
+
 @dataclass(frozen=True)
 class CCDEvent:
     """A contact found by sweeping a step.
