@@ -145,6 +145,7 @@ class BoxCCD:
         # and those of them struck by an impact then (its impulse acts whole at that start);
         # the frames a step stopped at an impact, struck as the next step begins.
         self._acted, self._struck, self._struck_next = set(), set(), set()
+        self._fast_seen = set()  # the frames swept as fast in the current (sub)step
         self._sync()
 
     # ------------------------------------------------------------ the world
@@ -225,6 +226,8 @@ class BoxCCD:
         """``p.stepSimulation()``, swept, with partial steps from the contacts pybullet would
         resolve wrongly; returns this step's contacts. Raises ``ClientDisconnectedError`` if
         the client was disconnected."""
+        self._fast_seen.clear()  # (what an interrupted step saw is not this step's)
+        self._chains.clamp_seen.clear()
         try:
             events = self._step_once()
         except pybullet.error:
@@ -263,9 +266,10 @@ class BoxCCD:
                 # the step unless it finds a contact.
                 st.begin_kinematic((), ())
                 sw = sweep(cid, self.world.tables, st, self._dt, self.fit_tolerance, self.tolerances,
-                           self.penetration, self.stats, time.perf_counter(), fast, self._at_clamp,
+                           self.penetration, self.stats, time.perf_counter(), fast, self._fast_seen,
                            self._near_unswept if self._unswept else None)
                 if sw is None:
+                    self._name_clamped()
                     return []
             events = self._step(self._dt, 0.0, self._dt, struck, stepped=True, fast=fast, sw=sw)
         else:
@@ -384,6 +388,7 @@ class BoxCCD:
                 raw.setPhysicsEngineParameter(fixedTimeStep=h, contactERP=self.world.journal.contact_erp,
                                               physicsClientId=self.cid)
                 self._partial = False
+        self._name_clamped()
         return events
 
     def _take(self, piece, h):
@@ -451,7 +456,7 @@ class BoxCCD:
         st.end_kinematic(h)
         if sw is None and not (stepped and fast is None):
             sw = sweep(self.cid, t, st, h, self.fit_tolerance, self.tolerances, self.penetration, self.stats, t0, fast,
-                       self._at_clamp, self._near_unswept if self._unswept else None)
+                       self._fast_seen, self._near_unswept if self._unswept else None)
         jw = jump_sweep(self.cid, t, st, h, self.fit_tolerance, self.tolerances, self.penetration, self.stats)
         found = self._chains_find(h)
         if sw is None and jw is None and not found:
@@ -525,13 +530,21 @@ class BoxCCD:
                 out.update(self._state.sweeper.at_speed([f], clamp, 1e-9))
         return out
 
-    def _at_clamp(self, frames):
-        """Fast frames with a velocity or spin component at exactly pybullet's default velocity
-        clamp (pybullet cuts each on its own), of bodies whose clamp was not changed
-        (changeDynamics(maxJointVelocity=...))."""
-        for f in frames:
-            b = self.world.tables.keys[f][0]
-            if self.world.maximal(b) or self.world.journal.max_velocity.get(b, MAX_VELOCITY) != MAX_VELOCITY:
+    def _name_clamped(self):
+        """Of the frames swept as fast in the (sub)step just ended, those whose velocity or
+        spin pybullet's default velocity clamp holds where it leaves the world (a component at
+        it: pybullet cuts each on its own), of bodies whose clamp was not changed
+        (changeDynamics(maxJointVelocity=...)): their bodies named once each; and so for
+        joints. (A pybullet step the world went back from is not the world the user gets.)"""
+        if self._chains.clamp_seen:
+            self._chains.name_clamped()
+        if not self._fast_seen:
+            return
+        w, frames = self.world, sorted(self._fast_seen)
+        self._fast_seen.clear()
+        for f in self._state.sweeper.at_speed(frames, MAX_VELOCITY, 1e-9):
+            b = w.tables.keys[f][0]
+            if w.maximal(b) or w.journal.max_velocity.get(b, MAX_VELOCITY) != MAX_VELOCITY:
                 continue  # pybullet clamps multibodies only, and this one's clamp was moved
             self._warn(("clamp", b), f"body {b} moves or turns at {MAX_VELOCITY:g} (m/s, rad/s) along a world axis, "
                                      "pybullet's default velocity clamp: if it was given more, pybullet cut it to "

@@ -84,6 +84,7 @@ class Articulated:
         ``max_velocity``: {body: maxJointVelocity the user set} (the journal's)."""
         self.cid, self.tables, self.sweep_reach = cid, tables, sweep_reach
         self._warn, self._max_velocity = warn, max_velocity
+        self.clamp_seen = []  # bodies read at the joint velocity clamp in the current step (name_clamped)
         self._link_ok = {}  # (box, box) of articulated bodies -> whether pybullet collides them
         self.bodies = {}
         for b, frames in tables.frames_of.items():
@@ -184,16 +185,25 @@ class Articulated:
                 continue
             if np.any(np.abs(rec.qdot) == MAX_VELOCITY) and \
                     self._max_velocity.get(rec.body, MAX_VELOCITY) == MAX_VELOCITY:
-                self._at_clamp(rec)
+                self.clamp_seen.append(rec)
             rec.motion = _core.ChainMotion(rec.chain.core, rec.base_state, q, rec.qdot, dt)
             rec.paths = {}
             state.rows[rec.frame_index] = rec.motion.frame_rows(rec.link_of_frame)
             state.fresh.update(rec.frames)
 
+    def name_clamped(self):
+        """Name the joints of the bodies in ``clamp_seen`` (read at pybullet's default joint
+        velocity clamp in a piece of the step) that the step leaves at it: a pybullet step the
+        world went back from is not the world the user gets."""
+        for rec in self.clamp_seen:
+            if rec.qdot is not None and np.any(np.abs(rec.qdot) >= MAX_VELOCITY):
+                self._at_clamp(rec)
+        self.clamp_seen = []
+
     def _at_clamp(self, rec):
         """Name the joints of a body moving at pybullet's default velocity clamp."""
         moving, _, spans = rec.layout
-        joints = [j for j, (a, b) in zip(moving, spans) if np.any(np.abs(rec.qdot[a:b]) == MAX_VELOCITY)]
+        joints = [j for j, (a, b) in zip(moving, spans) if np.any(np.abs(rec.qdot[a:b]) >= MAX_VELOCITY)]
         self._warn(("joint clamp", rec.body), f"body {rec.body} joint{'s' if len(joints) > 1 else ''} "
                                               f"{', '.join(map(str, joints))} move{'' if len(joints) > 1 else 's'} at "
                                               f"{MAX_VELOCITY:g} (rad/s, m/s), pybullet's default joint velocity "

@@ -20,7 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .. import _core
-from ._hooks import MAX_VELOCITY, raw
+from ._hooks import raw
 from .layout import POSE, TWIST
 from .world import FREE
 
@@ -63,14 +63,13 @@ class Sweep:
 _READS_PER_QUERY = 4
 
 
-def sweep(cid, tables, state, dt, fit_tolerance, tolerances, penetration, stats, t0, fast=None, at_clamp=None,
+def sweep(cid, tables, state, dt, fit_tolerance, tolerances, penetration, stats, t0, fast=None, fast_seen=None,
           near_unswept=None):
     """Sweep the step just taken (``state`` holds the velocities of the moving frames and
     the kinematic frames' poses; ``fast`` what ``state.sweeper.fast`` found, if it was
-    asked already). Returns a Sweep, or None if nothing touched. ``at_clamp`` is told the
-    fast frames whose speed or spin is pybullet's default velocity clamp; ``near_unswept``
-    the shapes left to pybullet (``tables.unswept``) that pybullet's broad phase finds
-    within the fast boxes' reach."""
+    asked already). Returns a Sweep, or None if nothing touched. The fast frames are added
+    to the set ``fast_seen``; ``near_unswept`` is told the shapes left to pybullet
+    (``tables.unswept``) that pybullet's broad phase finds within the fast boxes' reach."""
     sweeper = state.sweeper
     if fast is None:
         fast = state.fast(dt)
@@ -78,10 +77,8 @@ def sweep(cid, tables, state, dt, fit_tolerance, tolerances, penetration, stats,
             stats.seconds["state"] += time.perf_counter() - t0
             return None
     fast, slack, fast_frames = fast
-    if at_clamp is not None:
-        clamped = sweeper.at_speed(fast_frames, MAX_VELOCITY, 1e-9)
-        if clamped:
-            at_clamp(clamped)  # it checks the body's own clamp
+    if fast_seen is not None:
+        fast_seen.update(fast_frames)
     state.read_poses(state.stale(fast_frames))
     stats.swept_boxes += len(fast)
     bounds = None  # the fast boxes' swept bounds, once asked for

@@ -318,7 +318,7 @@ void bind_world(nb::module_ &m) {
                 return to_list(s.at_speed(int_list(frames), speed, rel_tol));
             },
             nb::arg("frames"), nb::arg("speed"), nb::arg("rel_tol"),
-            "Those of the frames with a component of velocity or spin of magnitude `speed` (to within rel_tol).")
+            "Those of the frames with a component of velocity or spin of magnitude `speed` or more (less rel_tol of it).")
         .def("slack", &Sweeper::slack, nb::arg("dt"),
              "The farthest a box with a finite sweep reach moves in a step of dt (m).")
         .def("velocities_at", &sweeper_velocities_at, nb::arg("dt"), nb::arg("tau"), nb::arg("frames"),

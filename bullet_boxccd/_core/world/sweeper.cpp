@@ -185,7 +185,7 @@ std::vector<int64_t> Sweeper::at_speed(const std::vector<int64_t> &frames, doubl
         const double *row = state_.data() + kFrameStateSize * f;
         // pybullet clamps each component of a body's velocity and spin (world axes) on its own.
         const double *twist = row + FrameState::kVelocity;  // v, w
-        if (std::any_of(twist, twist + 6, [&](double c) { return std::fabs(std::fabs(c) - speed) <= rel_tol * speed; }))
+        if (std::any_of(twist, twist + 6, [&](double c) { return std::fabs(c) >= speed - rel_tol * speed; }))
             out.push_back(f);
     }
     return out;

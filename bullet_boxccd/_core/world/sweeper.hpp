@@ -106,8 +106,8 @@ class Sweeper {
     Fast fast(double dt) const;
 
     // Those of the frames (checked) with a component of velocity or spin (world axes)
-    // of magnitude `speed` to within rel_tol of it (pybullet's velocity clamp, which
-    // cuts each component on its own).
+    // of magnitude `speed` or more, less rel_tol of it (pybullet's velocity clamp, which
+    // cuts each component on its own; a velocity the world was put at can be above it).
     std::vector<int64_t> at_speed(const std::vector<int64_t> &frames, double speed, double rel_tol) const;
 
     // The farthest a box with a finite sweep reach moves in a step of dt (the boxes
