@@ -854,9 +854,9 @@ def test_the_velocity_clamp_is_named_where_the_step_leaves_the_world_at_it(cid):
         p.setPhysicsEngineParameter(numSubSteps=0, physicsClientId=cid)
         box(cid, [0.05, 1, 1], [0, 0, 1], mass=0.0)
         p.changeDynamics(0, -1, restitution=1, physicsClientId=cid)
-        cube = p.createMultiBody(1, p.createCollisionShape(p.GEOM_BOX, halfExtents=[0.05] * 3, physicsClientId=cid),
-                                 basePosition=[-2, 0, 1], baseOrientation=p.getQuaternionFromEuler(rng.uniform(-3, 3, 3)),
-                                 physicsClientId=cid)
+        shape = p.createCollisionShape(p.GEOM_BOX, halfExtents=[0.05] * 3, physicsClientId=cid)
+        turned = p.getQuaternionFromEuler(rng.uniform(-3, 3, 3))
+        cube = p.createMultiBody(1, shape, basePosition=[-2, 0, 1], baseOrientation=turned, physicsClientId=cid)
         p.changeDynamics(cube, -1, restitution=rng.uniform(0, 1), physicsClientId=cid)
         p.resetBaseVelocity(cube, [rng.uniform(60, 99.9), 0, 0], rng.normal(0, 40, 3).tolist(), physicsClientId=cid)
         ccd = BoxCCD(cid)
