@@ -872,6 +872,29 @@ def test_the_velocity_clamp_is_named_where_the_step_leaves_the_world_at_it(cid):
         assert named == at_clamp[:1], (seed, named, at_clamp)
 
 
+def test_a_body_made_under_a_removed_ones_id_is_judged_and_named_as_itself(cid):
+    """A cube given 150 m/s is named at the clamp. Removed, a cube made under its id
+    with its clamp lifted is not cut and not named. Removed again, a third cube with
+    pybullet's default clamp is cut to 100 m/s and named afresh, although the first
+    cube was named under the same id and the second had its clamp lifted."""
+    reset(cid)
+    ccd = BoxCCD(cid)
+    said, speeds = [], []
+    for lifted in (False, True, False):
+        cube = p.loadURDF(CUBE_SMALL, [0, 0, 0], physicsClientId=cid)
+        if lifted:
+            p.changeDynamics(cube, -1, maxJointVelocity=1000, physicsClientId=cid)
+        p.resetBaseVelocity(cube, [150, 0, 0], [0, 0, 0], physicsClientId=cid)
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            ccd.step()
+        said.append(sum(issubclass(w.category, BoxCCDWarning) for w in caught))
+        speeds.append(p.getBaseVelocity(cube, physicsClientId=cid)[0][0])
+        p.removeBody(cube, physicsClientId=cid)
+    assert speeds[0] == speeds[2] == 100.0 and speeds[1] > 140.0, speeds
+    assert said == [1, 0, 1], said
+
+
 def test_a_boxccd_kept_across_reset_simulation_names_the_new_worlds_conditions(cid):
     """What BoxCCD said of a world is forgotten when pybullet resets it: a cube at the
     velocity clamp in each of three worlds built in turn in one client is named in each."""

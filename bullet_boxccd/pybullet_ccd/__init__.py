@@ -123,7 +123,8 @@ class BoxCCD:
             raise InvalidInputError(f"tolerances: expected a Tolerances, got {type(tolerances).__name__}")
         self.tolerances = tolerances
         self.stats = CCDStats()
-        self._warned = set()  # what was said of this world (forgotten when it is reset)
+        self._warned = set()  # what was said of this world (forgotten when it is reset; of a body, when it is)
+        self._renewed_seen = 0  # the latest body removal or creation whose warnings were forgotten
         self._warn = warn_once(self._warned)
         if self.sweep_threshold > 1.0:  # (of the knob, not of the world: said once)
             warn_once(set())(("sweep_threshold",),
@@ -162,6 +163,7 @@ class BoxCCD:
             self._alone = False
         if self.world.sync():
             self.stats.rediscoveries += 1
+            self._forget_renewed(j)
             t = self.world.tables
             self._sweep_reach = np.minimum(self.sweep_threshold * 2.0 * t.half.min(axis=1), self.sweep_distance)
             self._chains = Articulated(self.cid, t, self.world.self_collision(), self._sweep_reach, self._warn,
@@ -243,6 +245,14 @@ class BoxCCD:
                 f"physics client {self.cid} was disconnected"
                 + (" and a new world connected under its id: this BoxCCD's world is gone; make a new "
                    f"BoxCCD({self.cid}) for the new one" if again else " (p.disconnect)"))
+
+    def _forget_renewed(self, j):
+        """Forget what was said of the bodies removed or made since the last look: a new body
+        under a removed one's id is named afresh."""
+        renewed = {b for b, serial in j.renewed.items() if serial > self._renewed_seen}
+        if renewed:
+            self._renewed_seen = max(j.renewed.values())
+            self._warned -= {k for k in self._warned if len(k) > 1 and type(k[1]) is int and k[1] in renewed}
 
     def _step_once(self) -> list:
         cid = self.cid

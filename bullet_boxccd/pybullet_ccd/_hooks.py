@@ -90,6 +90,7 @@ class Journal:
     reset: int = 0  # resetSimulation (everything below is cleared with it)
     closed: bool = False  # the client was disconnected (a later one under its id has a journal of its own)
     bodies: dict = field(default_factory=dict)  # body -> serial of its creation, removal, mass or scale change
+    renewed: dict = field(default_factory=dict)  # body -> serial of its latest creation or removal
     last_body: int = 0  # the latest serial in ``bodies``
     created: set = field(default_factory=set)  # bodies made through the wrapped functions (provenance)
     params: int = 0  # fixedTimeStep / numSubSteps / gravity changed
@@ -327,6 +328,8 @@ def _structure(cid, body):
 
 def _forget(j, b):
     """What the journal knew of a body id that was removed or made anew."""
+    j.renewed[b] = j.bodies[b]
+    j.max_velocity.pop(b, None)
     j.group_mask = {k: v for k, v in j.group_mask.items() if k[0] != b}  # they lived on its broadphase proxies
     j.file_group_mask.pop(b, None)
     j.filters_unknown.pop(b, None)
