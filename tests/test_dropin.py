@@ -637,6 +637,67 @@ def test_a_shape_left_to_pybullet_is_named_once_a_fast_box_comes_near_it(cid):
         assert [m.split(" is in the reach")[0] for m in messages] == named, messages
 
 
+@pytest.mark.parametrize("case, named", [("plain", True), ("maximal", True), ("pair filter", False),
+                                         ("group filter", False), ("its own", False)])
+def test_a_shape_left_to_pybullet_is_named_as_pybullet_collides_it(cid, case, named):
+    """A static sphere in a fast cube's way is named, made in maximal coordinates too
+    (pybullet meets it alone); one the user filtered out of the cube's collisions (a pair
+    rule, or groups and masks) is not: pybullet never meets it (the cube passes through it
+    with no contact), and neither is a sphere of the cube's own body."""
+    reset(cid)
+    cube = box(cid, [0.05] * 3, [-1.5, 0, 0])
+    if case == "its own":
+        shape = p.createCollisionShapeArray([p.GEOM_BOX, p.GEOM_SPHERE], halfExtents=[[0.05] * 3, [0] * 3],
+                                            radii=[0, 0.05], collisionFramePositions=[[0] * 3, [0.3, 0, 0]],
+                                            physicsClientId=cid)
+        p.removeBody(cube, physicsClientId=cid)
+        cube = p.createMultiBody(1, shape, basePosition=[-1.5, 0, 0], physicsClientId=cid)
+    else:
+        sphere = p.createMultiBody(0, p.createCollisionShape(p.GEOM_SPHERE, radius=0.3, physicsClientId=cid),
+                                   useMaximalCoordinates=case == "maximal", physicsClientId=cid)
+    if case == "pair filter":
+        p.setCollisionFilterPair(cube, sphere, -1, -1, 0, physicsClientId=cid)
+    if case == "group filter":
+        p.setCollisionFilterGroupMask(sphere, -1, 2, 2, physicsClientId=cid)
+        p.setCollisionFilterGroupMask(cube, -1, 1, 1, physicsClientId=cid)
+    throw(cid, cube, speed=60.0, spin=(0, 0, 0))
+    contacts = []
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        run(cid, True, 12, lambda k: case != "its own" and contacts.append(
+            len(p.getContactPoints(cube, sphere, physicsClientId=cid))))
+    messages = [str(w.message) for w in caught if issubclass(w.category, BoxCCDWarning)]
+    assert messages == (["body 1 link -1 (sphere) is in the reach of a fast box: BoxCCD sweeps boxes against "
+                         "boxes only, so pybullet alone meets that contact and the box can pass through it"]
+                        if named else []), messages
+    if case != "its own":
+        assert (max(contacts) > 0) == named, contacts
+
+
+def test_a_box_link_swinging_at_a_shape_left_to_pybullet_names_it(cid):
+    """A box link spun about its centre at 80 rad/s, by a fixed base with a box far away
+    (so the robot is watched), sweeps through a static sphere 15 cm from its axis: the
+    sphere is named, as for a free box."""
+    reset(cid)
+    link = p.createCollisionShape(p.GEOM_BOX, halfExtents=[0.2, 0.02, 0.02], physicsClientId=cid)
+    base = p.createCollisionShape(p.GEOM_BOX, halfExtents=[0.05] * 3, physicsClientId=cid)
+    arm = p.createMultiBody(0, base, linkMasses=[1.0], linkCollisionShapeIndices=[link], linkVisualShapeIndices=[-1],
+                            linkPositions=[[0.3, 0, 0]], linkOrientations=[[0, 0, 0, 1]],
+                            linkInertialFramePositions=[[0, 0, 0]], linkInertialFrameOrientations=[[0, 0, 0, 1]],
+                            linkParentIndices=[0], linkJointTypes=[p.JOINT_REVOLUTE], linkJointAxis=[[0, 0, 1]],
+                            physicsClientId=cid)
+    p.setJointMotorControl2(arm, 0, p.VELOCITY_CONTROL, force=0, physicsClientId=cid)
+    sphere = p.createMultiBody(0, p.createCollisionShape(p.GEOM_SPHERE, radius=0.03, physicsClientId=cid),
+                               basePosition=[0.3, 0.15, 0], physicsClientId=cid)
+    box(cid, [0.05] * 3, [3, 3, 3], mass=0.0)
+    p.resetJointState(arm, 0, 0, 80, physicsClientId=cid)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        run(cid, True, 8)
+    messages = [str(w.message) for w in caught if issubclass(w.category, BoxCCDWarning)]
+    assert [m.split(" is in the reach")[0] for m in messages] == [f"body {sphere} link -1 (sphere)"], messages
+
+
 def test_a_box_whose_state_is_not_finite_is_named_once_and_left_to_pybullet(cid):
     """A free box given a NaN velocity is named in one warning and left to pybullet; a fast
     cube beside it is still stopped at the wall."""
@@ -839,6 +900,31 @@ def test_a_fast_box_at_pybullets_velocity_clamp_is_named_once(cid, given, subste
     assert len(said) == 1 and f"body {clamped} " in said[0] and "maxJointVelocity" in said[0], said
     assert caught[0].filename == __file__
     assert p.getBaseVelocity(lifted, physicsClientId=cid)[0][0] > 100.5  # not clamped (damped a little)
+
+
+def test_a_velocity_given_above_the_clamp_is_named_though_a_contact_slows_it_below(cid):
+    """A cube given 150 m/s along a floor is cut to 100 by pybullet and slowed below it by
+    friction in the same step (99.96): it is named all the same, once; one given as much
+    with its clamp lifted is not, nor one given 150 m/s and removed before the step."""
+    reset(cid, -9.81)
+    p.loadURDF(os.path.join(pybullet_data.getDataPath(), "plane.urdf"), physicsClientId=cid)
+    clamped = p.loadURDF(CUBE_SMALL, [0, 0, 0.025], physicsClientId=cid)
+    lifted = p.loadURDF(CUBE_SMALL, [0, 1, 0.025], physicsClientId=cid)
+    gone = p.loadURDF(CUBE_SMALL, [0, 2, 0.025], physicsClientId=cid)
+    p.changeDynamics(lifted, -1, maxJointVelocity=1000, physicsClientId=cid)
+    for b in (clamped, lifted, gone):
+        p.resetBaseVelocity(b, np.array([150.0, 0, 0]), np.zeros(3), physicsClientId=cid)  # as arrays too
+    p.removeBody(gone, physicsClientId=cid)
+    ccd = BoxCCD(cid)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        ccd.step()
+        first = p.getBaseVelocity(clamped, physicsClientId=cid)[0][0]
+        for _ in range(2):
+            ccd.step()
+    said = [str(w.message) for w in caught if issubclass(w.category, BoxCCDWarning)]
+    assert len(said) == 1 and said[0].startswith(f"body {clamped} moves or turns at 100"), said
+    assert 99.0 < first < 100.0
 
 
 def test_the_velocity_clamp_is_named_where_the_step_leaves_the_world_at_it(cid):

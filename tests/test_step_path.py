@@ -219,15 +219,20 @@ def test_fast_boxes_and_slack():
     boxes = [(f, np.eye(4), np.full(3, 0.1)) for f in range(3)]
     sweeper = sweeper_of(boxes, np.full(3, 0.2), [15 * DT, 15 * DT, 0.0], 3)
     sweeper.state[:] = states
-    fast, slack, frames, broken = sweeper.fast(DT)
-    assert fast == [1] and frames == [1] and slack == pytest.approx(10 * DT) and broken == [2]
+    fast, slack, frames, broken, clamped = sweeper.fast(DT)
+    assert fast == [1] and frames == [1] and slack == pytest.approx(10 * DT) and broken == [2] and clamped == []
+    # With a clamp speed: frame 1 turns at 100 rad/s, frame 0 moves at 10 m/s; frame 2 (not
+    # finite) is neither.
+    assert sweeper.fast(DT, clamp=100.0)[4] == [1] and sweeper.fast(DT, clamp=10.0)[4] == [0, 1]
     # pybullet's velocity reads written first: frame 1 stops, frame 0 speeds up to 20 m/s.
-    fast, _, frames, _ = sweeper.fast(DT, [0, 1], [((20.0, 0.0, 0.0), (0.0, 0.0, 0.0)), ((0.0,) * 3, (0.0,) * 3)])
+    fast, _, frames, _, _ = sweeper.fast(DT, [0, 1], [((20.0, 0.0, 0.0), (0.0, 0.0, 0.0)), ((0.0,) * 3, (0.0,) * 3)])
     assert fast == [0] and frames == [0] and sweeper.state[0, 7] == 20.0 and sweeper.state[1, 12] == 0.0
     sweeper.state[0, 7] = 0.0
-    assert sweeper.fast(DT) == ([], 0.0, [], [2])  # nothing fast, one frame not finite
+    assert sweeper.fast(DT) == ([], 0.0, [], [2], [])  # nothing fast, one frame not finite
     sweeper.state[2, 7] = 0.0
     assert sweeper.fast(DT) is None
+    sweeper.state[0, 7] = 10.0  # slow, at a clamp of 10 m/s
+    assert sweeper.fast(DT) is None and sweeper.fast(DT, clamp=10.0) == ([], pytest.approx(10 * DT), [], [], [0])
 
 
 @pytest.mark.parametrize("all_others", [False, True])

@@ -125,6 +125,7 @@ class BoxCCD:
         self.stats = CCDStats()
         self._warned = set()  # what was said of this world (forgotten when it is reset; of a body, when it is)
         self._renewed_seen = 0  # the latest body removal or creation whose warnings were forgotten
+        self._over_seen = 0  # the latest velocity given above the clamp that was looked at
         self._warn = warn_once(self._warned)
         if self.sweep_threshold > 1.0:  # (of the knob, not of the world: said once)
             warn_once(set())(("sweep_threshold",),
@@ -146,7 +147,7 @@ class BoxCCD:
         # and those of them struck by an impact then (its impulse acts whole at that start);
         # the frames a step stopped at an impact, struck as the next step begins.
         self._acted, self._struck, self._struck_next = set(), set(), set()
-        self._fast_seen = set()  # the frames swept as fast in the current (sub)step
+        self._fast_seen = set()  # the frames swept as fast, or read at the velocity clamp, in the current (sub)step
         self._sync()
 
     # ------------------------------------------------------------ the world
@@ -170,7 +171,8 @@ class BoxCCD:
                                        self.world.journal.max_velocity)
             rigid_reach = self._sweep_reach.copy()
             rigid_reach[self._chains.boxes] = math.inf  # swept on their own paths (articulated)
-            self._state = FrameState(self.cid, t, rigid_reach, self._chains.frames, self._not_finite)
+            self._state = FrameState(self.cid, t, rigid_reach, self._chains.frames, self._not_finite,
+                                     self._fast_seen.update)
             self._others = Others(self.cid, self.world.journal, t.other_rigid, t.other_chains, t.other_fixed,
                                   t.other_stuck, self._warn, self.world.damping)
             self._watched = bool(self._state.moving) or bool(self._chains.watched)
@@ -186,9 +188,6 @@ class BoxCCD:
             self._dt, self._substeps = params["fixedTimeStep"], max(int(params.get("numSubSteps", 0)), 1)
             self._gravity = np.array([params.get(f"gravityAcceleration{c}", 0.0) for c in "XYZ"])
             self._params_seen = max(j.params, j.reset)
-        if self._substeps > 1 and j.pd_control and self._watched:
-            self._warn(("pd",), "with numSubSteps > 1 BoxCCD takes the substeps itself: torques of PD_CONTROL and "
-                                "STABLE_PD_CONTROL motors are computed again for each substep")
 
     def _velocities_set(self):
         """Where the user set velocities or joint states since the last step, the velocities
@@ -235,7 +234,13 @@ class BoxCCD:
         except pybullet.error:
             self._check_connected()
             raise
-        self.world.journal.impulses.clear()  # pybullet cleared the user's forces
+        j = self.world.journal
+        j.impulses.clear()  # pybullet cleared the user's forces
+        over = [b for b, serial in j.over_clamp.items() if serial > self._over_seen]
+        if over:  # given a velocity above the clamp, which pybullet cut as it stepped
+            self._over_seen = max(j.over_clamp.values())
+            for b in over:
+                self._name_clamp(b)
         return events
 
     def _check_connected(self):
@@ -268,7 +273,8 @@ class BoxCCD:
             raw.stepSimulation(physicsClientId=cid)
             self._known = True
             fast = st.fast(self._dt, read=True) if st.moving else None
-            if fast is None and (not self._chains.watched or self._chains.idle(self._dt, st)):
+            if fast is None and (not self._chains.watched or self._chains.idle(self._dt, st, self._unswept)):
+                self._name_clamped()
                 return []
             sw = None
             if not self._chains.bodies:
@@ -302,6 +308,9 @@ class BoxCCD:
             return self._step(dt, 0.0, dt, struck)
         if not self._watched and not self._state.with_velocity:
             return self._pybullet_alone()
+        if self.world.journal.pd_control:
+            self._warn(("pd",), "with numSubSteps > 1 BoxCCD takes the substeps itself: torques of PD_CONTROL and "
+                                "STABLE_PD_CONTROL motors are computed again for each substep")
         events = []
         with self._substepping(dt, n):
             for k in range(n):
@@ -541,31 +550,36 @@ class BoxCCD:
         return out
 
     def _name_clamped(self):
-        """Of the frames swept as fast in the (sub)step just ended, those whose velocity or
-        spin pybullet's default velocity clamp holds where it leaves the world (a component at
-        it: pybullet cuts each on its own), of bodies whose clamp was not changed
-        (changeDynamics(maxJointVelocity=...)): their bodies named once each; and so for
-        joints. (A pybullet step the world went back from is not the world the user gets.)"""
+        """Of the frames swept as fast or read at the clamp in the (sub)step just ended, those
+        whose velocity or spin pybullet's default velocity clamp holds where it leaves the
+        world (a component at it: pybullet cuts each on its own): their bodies named once
+        each; and so for joints. (A pybullet step the world went back from is not the world
+        the user gets.)"""
         if self._chains.clamp_seen:
             self._chains.name_clamped()
         if not self._fast_seen:
             return
-        w, frames = self.world, sorted(self._fast_seen)
+        frames = sorted(self._fast_seen)
         self._fast_seen.clear()
         for f in self._state.sweeper.at_speed(frames, MAX_VELOCITY, 1e-9):
-            b = w.tables.keys[f][0]
-            if w.maximal(b) or w.journal.max_velocity.get(b, MAX_VELOCITY) != MAX_VELOCITY:
-                continue  # pybullet clamps multibodies only, and this one's clamp was moved
-            self._warn(("clamp", b), f"body {b} moves or turns at {MAX_VELOCITY:g} (m/s, rad/s) along a world axis, "
-                                     "pybullet's default velocity clamp: if it was given more, pybullet cut it to "
-                                     f"that (p.changeDynamics({b}, -1, maxJointVelocity=...) lifts it)")
+            self._name_clamp(self.world.tables.keys[f][0])
+
+    def _name_clamp(self, b):
+        """Name body b at pybullet's default velocity clamp, unless pybullet does not clamp it:
+        in maximal coordinates, or with its clamp changed (changeDynamics(maxJointVelocity=...))."""
+        w = self.world
+        if w.maximal(b) or w.journal.max_velocity.get(b, MAX_VELOCITY) != MAX_VELOCITY:
+            return
+        self._warn(("clamp", b), f"body {b} moves or turns at {MAX_VELOCITY:g} (m/s, rad/s) along a world axis, "
+                                 "pybullet's default velocity clamp: if it was given more, pybullet cut it to "
+                                 f"that (p.changeDynamics({b}, -1, maxJointVelocity=...) lifts it)")
 
     def _chains_find(self, h):
         if not self._chains.bodies:
             return []
         t0 = time.perf_counter()
         found = self._chains.find(h, self._state, self.fit_tolerance, self.tolerances,
-                                  self.penetration, self.stats)
+                                  self.penetration, self.stats, self._near_unswept if self._unswept else None)
         self.stats.seconds["solve"] += time.perf_counter() - t0
         return found
 

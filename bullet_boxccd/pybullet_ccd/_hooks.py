@@ -111,6 +111,7 @@ class Journal:
     moved: dict = field(default_factory=dict)
     base_moved: dict = field(default_factory=dict)
     velocity_set: dict = field(default_factory=dict)  # body -> serial of the user's latest resetBaseVelocity
+    over_clamp: dict = field(default_factory=dict)  # body -> serial of the latest one above MAX_VELOCITY
     restored: int = 0  # restoreState: every body jumped
     last_move: int = 0  # the latest of the three above
     stepped: int = 0  # the user called stepSimulation directly
@@ -330,6 +331,7 @@ def _forget(j, b):
     """What the journal knew of a body id that was removed or made anew."""
     j.renewed[b] = j.bodies[b]
     j.max_velocity.pop(b, None)
+    j.over_clamp.pop(b, None)
     j.group_mask = {k: v for k, v in j.group_mask.items() if k[0] != b}  # they lived on its broadphase proxies
     j.file_group_mask.pop(b, None)
     j.filters_unknown.pop(b, None)
@@ -601,7 +603,19 @@ def _base_moved(cid, a, result):
 
 def _reset_base_velocity(cid, a, result):
     j = journal(cid)
-    j.velocity_set[int(a["objectUniqueId"])] = j.last_move = next(_serial)
+    b = int(a["objectUniqueId"])
+    j.velocity_set[b] = j.last_move = next(_serial)
+    if _above(a.get("linearVelocity"), MAX_VELOCITY) or _above(a.get("angularVelocity"), MAX_VELOCITY):
+        j.over_clamp[b] = j.last_move
+
+
+def _above(vector, limit):
+    """Whether a vector pybullet took (any sequence of numbers, a numpy array) has a
+    component beyond +-limit."""
+    try:
+        return vector is not None and any(abs(float(x)) > limit for x in vector)
+    except (TypeError, ValueError):
+        return False
 
 
 def _restore_state(cid, a, result):

@@ -44,7 +44,7 @@ from .contacts import bounce, place
 from .events import CCDEvent, not_finite_message
 from .layout import ANGULAR_VELOCITY, POSE, TWIST, VELOCITY
 from .others import joint_layout, put_body
-from .sweep import CREEP, overlap_query
+from .sweep import CREEP, overlap_query, unswept_near
 from .world import FREE, LINK
 
 __all__ = ["Articulated"]
@@ -120,7 +120,7 @@ class Articulated:
         self.boxes = np.array(sorted(i for rec in self.bodies.values() for _, i in rec.boxes), dtype=np.int64)
 
     # ------------------------------------------------------------ reading
-    def idle(self, dt, state) -> bool:
+    def idle(self, dt, state, unswept=()) -> bool:
         """Whether no box of a body that can meet another box moved farther than its sweep
         reach in the step of dt just taken near anything it can meet, from one read per
         body: every box link's velocities after the step (getLinkStates; the base's by
@@ -130,7 +130,8 @@ class Articulated:
         nothing it can meet within twice those moves of its fast links' bounds (getAABB;
         and the farthest anything else moved): a robot swinging in free space. A body with a
         box judged against a partner in the last step is taken to move still (it is read
-        whole at once)."""
+        whole at once). Nor is it idle near a shape in ``unswept`` (left to pybullet, not named
+        yet) of another body."""
         cid, fast, widen = self.cid, [], 0.0
         for rec in self.watched:
             if rec.fast:
@@ -159,6 +160,8 @@ class Articulated:
                 for key in overlap_query(cid, box, widen):
                     g = t.index.get(key)
                     if g is not None and (int(t.body[g]) != rec.body or rec.ancestors is not None):
+                        return False
+                    if key in unswept and key[0] != rec.body:
                         return False
         for rec in self.bodies.values():
             rec.base_state = None  # not read this step: the next step's start is not known
@@ -226,10 +229,11 @@ class Articulated:
         return path
 
     # ------------------------------------------------------------ sweeping
-    def find(self, dt, state, fit_tolerance, tolerances, penetration, stats):
+    def find(self, dt, state, fit_tolerance, tolerances, penetration, stats, near_unswept=None):
         """Sweep the fast link boxes. Returns their contacts in time order: [(touch, act at
         (None: pybullet's to resolve), (point, normal, feature), initial, pressing, body
-        record, frame, partner frame, (path, partner path))]."""
+        record, frame, partner frame, (path, partner path))]. ``near_unswept`` is told the
+        shapes left to pybullet (``tables.unswept``) within a fast link box's reach."""
         t = self.tables
         fast = []
         for rec in self.watched:
@@ -241,6 +245,10 @@ class Articulated:
         if not fast:
             return []
         stats.swept_boxes += len(fast)
+        if near_unswept is not None:
+            near = unswept_near(self.cid, t, [f for _, f, _, _ in fast], np.array([b for *_, b in fast]), 0.0)
+            if near:
+                near_unswept(near)
         rigid = self._rigid_near(fast, state, dt)
         linked = self._linked_pairs(fast, dt)
         found, reach, allowed = [], self.sweep_reach, t.filters.allowed

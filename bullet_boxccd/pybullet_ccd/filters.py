@@ -36,15 +36,14 @@ def default_group_mask(fixed: bool) -> tuple[int, int]:
 class Filters:
     """Group, mask and pair rules of the tracked frames, and the decision for a pair."""
 
-    def __init__(self, keys, defaults, file_group_mask, journal):
+    def __init__(self, keys, defaults, file_group_mask, journal, others=None):
         """``keys``: (body, link) per frame; ``defaults``: (group, mask) per frame before the
-        user's settings; ``file_group_mask``: {(body, link): (group or None, mask or None)}."""
-        group, mask = [], []
-        for key, (g, m) in zip(keys, defaults):
-            fg, fm = file_group_mask.get(key, (None, None))
-            g, m = journal.group_mask.get(key, (g if fg is None else fg, m if fm is None else fm))
-            group.append(g)
-            mask.append(m)
+        user's settings; ``file_group_mask``: {(body, link): (group or None, mask or None)};
+        ``others``: {(body, link): (defaults, the file's (group, mask) or None)} of shapes no
+        frame carries (``allowed_shape``)."""
+        group, mask = zip(*(_group_mask(journal, key, d, file_group_mask.get(key))
+                            for key, d in zip(keys, defaults))) if keys else ((), ())
+        self.others = {key: _group_mask(journal, key, d, fgm) for key, (d, fgm) in (others or {}).items()}
         self.group = np.array(group, dtype=np.int64)
         self.mask = np.array(mask, dtype=np.int64)
         self.mode = journal.filter_mode
@@ -60,6 +59,17 @@ class Filters:
         ba = (self.group[fb] & self.mask[fa]) != 0
         return bool(ab or ba) if self.mode == OR_MODE else bool(ab and ba)
 
+    def allowed_shape(self, fa: int, key) -> bool:
+        """Whether pybullet lets frame fa collide with the shape of (body, link) ``key`` in
+        ``others``."""
+        rule = self.rules.get(pair_rule_key(*self.keys[fa], *key)) if self.rules else None
+        if rule is not None:
+            return rule
+        g, m = self.others[key]
+        ab = (self.group[fa] & m) != 0
+        ba = (g & self.mask[fa]) != 0
+        return bool(ab or ba) if self.mode == OR_MODE else bool(ab and ba)
+
     def allowed_pairs(self, fa: np.ndarray, fb: np.ndarray) -> np.ndarray:
         """(n,) bool: ``allowed`` for n pairs of frame indices."""
         ab = (self.group[fa] & self.mask[fb]) != 0
@@ -71,3 +81,10 @@ class Filters:
                 if rule is not None:
                     ok[k] = rule
         return ok
+
+
+def _group_mask(journal, key, default, file_group_mask):
+    """A collision object's (group, mask): the user's, else its file's (each of the two where
+    the file sets it), else pybullet's default."""
+    fg, fm = file_group_mask or (None, None)
+    return journal.group_mask.get(key, (default[0] if fg is None else fg, default[1] if fm is None else fm))

@@ -98,8 +98,8 @@ class Shadow:
         self._shapes = {}  # (client, journal reset serial, user's shape index) -> shadow index
 
     def boxes(self, cid, journal, body):
-        """{link: [(half, X_CS)]} of a maximal-coordinate body the journal saw being made,
-        or None."""
+        """{link: ``multibody_boxes``} of a maximal-coordinate body the journal saw being
+        made, or None."""
         recipe = journal.maximal.get(body)
         if recipe is None:
             return None
@@ -124,7 +124,7 @@ class Shadow:
             shadow = ids[index]
             links = range(-1, raw.getNumJoints(shadow, physicsClientId=self.cid))
             static = raw.getDynamicsInfo(shadow, -1, physicsClientId=self.cid)[0] == 0.0
-            return {lk: multibody_boxes(self.cid, shadow, lk, planes=static and lk == -1)[0] for lk in links}
+            return {lk: multibody_boxes(self.cid, shadow, lk, planes=static and lk == -1) for lk in links}
         finally:
             for b in ids:
                 raw.removeBody(b, physicsClientId=self.cid)

@@ -20,7 +20,7 @@ from functools import partial
 import numpy as np
 
 from .. import _core
-from ._hooks import raw
+from ._hooks import MAX_VELOCITY, raw
 from .layout import POSE, TWIST
 from .world import STATIC
 
@@ -44,8 +44,9 @@ def _readers(cid, body, link):
 class FrameState:
     """The (F, 13) state of every frame after the current step, and the kinematic frames."""
 
-    def __init__(self, cid, tables, sweep_reach, articulated=frozenset(), not_finite=lambda frames: None):
-        self.cid, self.tables, self._not_finite = cid, tables, not_finite
+    def __init__(self, cid, tables, sweep_reach, articulated=frozenset(), not_finite=lambda frames: None,
+                 clamped=lambda frames: None):
+        self.cid, self.tables, self._not_finite, self._clamped = cid, tables, not_finite, clamped
         f = tables.filters
         # The core's sweeper holds the box tables and the rows (``rows`` is a numpy view of
         # them): a step's calls into the core pass no array.
@@ -79,13 +80,17 @@ class FrameState:
     def fast(self, dt, read=False):
         """``Sweeper.fast`` of a step of dt (the moving frames' velocities read first, with
         ``read``): (fast boxes, slack, their frames), or None. Frames whose state pybullet
-        left not finite, which pybullet alone steps, are told to ``not_finite``."""
-        found = self.sweeper.fast(dt, self.moving, self.twists()) if read else self.sweeper.fast(dt)
+        left not finite, which pybullet alone steps, are told to ``not_finite``; frames with a
+        component of velocity at pybullet's default clamp or above, to ``clamped``."""
+        found = self.sweeper.fast(dt, self.moving, self.twists(), MAX_VELOCITY) if read else \
+            self.sweeper.fast(dt, clamp=MAX_VELOCITY)
         if found is None:
             return None
-        boxes, slack, frames, broken = found
+        boxes, slack, frames, broken, clamped = found
         if broken:
             self._not_finite(broken)
+        if clamped:
+            self._clamped(clamped)
         return (boxes, slack, frames) if boxes else None
 
     def twists(self) -> list:

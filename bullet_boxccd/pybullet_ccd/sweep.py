@@ -84,10 +84,7 @@ def sweep(cid, tables, state, dt, fit_tolerance, tolerances, penetration, stats,
     bounds = None  # the fast boxes' swept bounds, once asked for
     if near_unswept is not None:
         _, bounds = sweeper.rows(dt, fast)
-        reach = bounds[:, :3].min(axis=0).tolist() + bounds[:, 3:].max(axis=0).tolist()
-        near = [key for key in map(tuple, overlap_query(cid, reach, slack)) if key in tables.unswept]
-        # Those within a fast box's own swept bounds (the union of them can span a room).
-        near = [key for key in near if _within(raw.getAABB(*key, physicsClientId=cid), bounds, slack)]
+        near = unswept_near(cid, tables, tables.box_frame[fast].tolist(), bounds, slack)
         if near:
             near_unswept(near)
     t1 = time.perf_counter()
@@ -123,6 +120,21 @@ def sweep(cid, tables, state, dt, fit_tolerance, tolerances, penetration, stats,
         allowed = set(map(tuple, pairs.tolist()))
         hits = [h for h in hits if h[:2] in allowed]
     return Sweep(rows, boxes, pairs, hits) if hits else None
+
+
+def unswept_near(cid, tables, frames, bounds, slack):
+    """The shapes left to pybullet (``tables.unswept``) within a fast box's own swept
+    bounds (n, 6), widened by ``slack``, that pybullet lets that box's frame (``frames``,
+    (n,)) collide with: of another body, and not filtered out."""
+    reach = bounds[:, :3].min(axis=0).tolist() + bounds[:, 3:].max(axis=0).tolist()
+    near = [key for key in map(tuple, overlap_query(cid, reach, slack)) if key in tables.unswept]
+    out, allowed, body = [], tables.filters.allowed_shape, tables.body
+    for key in near:  # (the union of the bounds can span a room)
+        aabb = raw.getAABB(*key, physicsClientId=cid)
+        if any(body[f] != key[0] and allowed(f, key) and _within(aabb, bounds[k:k + 1], slack)
+               for k, f in enumerate(frames)):
+            out.append(key)
+    return out
 
 
 def _within(aabb, bounds, slack):

@@ -32,6 +32,7 @@ import re
 import sys
 import warnings
 from dataclasses import dataclass, field
+from functools import partial
 
 import numpy as np
 import pybullet
@@ -74,6 +75,8 @@ class _Body:
     untracked: list = field(default_factory=list)
     untracked_why: str = ""
     groups: dict = field(default_factory=dict)  # link -> (group, mask) its file sets (MJCF)
+    fixed_base: bool = False
+    names: dict = field(default_factory=dict)  # link -> its name
 
 
 @dataclass
@@ -200,7 +203,8 @@ class World:
         n_joints = raw.getNumJoints(b, physicsClientId=cid)
         fixed_base = info[0] == 0.0
         rec.moves = "chain" if n_joints else "" if fixed_base else "rigid"
-        names = self._link_names(b, n_joints)
+        names = rec.names = self._link_names(b, n_joints)
+        rec.fixed_base = fixed_base
         from_file = self._mjcf_links(b, rec, names, n_joints)
         shadow = None
         if rec.maximal and from_file is None and self.journal.link_geometry.get(b, {}).get(-1) != \
@@ -208,7 +212,7 @@ class World:
             shadow = self._shadow.boxes(cid, self.journal, b)
             if shadow is not None:  # pybullet poses no link of a maximal-coordinate body (getNumJoints is 0)
                 rec.unposed = any(lk >= 0 for lk in shadow)
-                left = [(lk, len(bx)) for lk, bx in sorted(shadow.items()) if lk >= 0 and bx]
+                left = [(lk, len(bx)) for lk, (bx, _) in sorted(shadow.items()) if lk >= 0 and bx]
                 if left:
                     rec.untracked = left
                     rec.untracked_why = ("pybullet reports neither the pose nor the velocity of the links of a "
@@ -291,12 +295,11 @@ class World:
         if self.journal.link_geometry.get(b, {}).get(link) == pybullet.GEOM_HEIGHTFIELD:
             rec.left.append((link, "heightfield"))  # getCollisionShapeData would print an error for it
             return [], None
-        if not rec.maximal:
-            boxes, others = multibody_boxes(self.cid, b, link, planes=static)
+        if not rec.maximal or shadow is not None:
+            boxes, others = multibody_boxes(self.cid, b, link, planes=static) if shadow is None else \
+                shadow.get(link, ([], []))
             rec.left.extend((link, _GEOMETRY.get(g, str(g))) for g in others)
             return boxes, None
-        if shadow is not None:
-            return shadow.get(link, []), None
         if link != -1:
             return [], "a link of a maximal-coordinate body made before bullet_boxccd was imported"
         if self._probe_shape < 0:
@@ -340,24 +343,28 @@ class World:
     # ---------------------------------------------------------------- tables
     def _build(self, ids):
         keys, kinds, selfc, defaults, fgm = [], [], [], [], {}
+        unswept, unswept_groups = {}, {}  # shapes left to pybullet: (body, link) -> what; its default and file groups
         box_frame, half, X_CS = [], [], []
         for b in ids:
             rec = self._bodies[b]
             file_groups = self.journal.file_group_mask.get(b, {})
+            file_group = partial(_file_group, rec, file_groups)
             for fr in rec.frames:
                 f = len(keys)
                 keys.append((b, fr.link))
                 kinds.append(fr.kind)
                 selfc.append(b in self.self_collision_bodies or b in self.journal.self_collision)
                 defaults.append(default_group_mask(fr.fixed))
-                if fr.link in rec.groups:
-                    fgm[(b, fr.link)] = rec.groups[fr.link]
-                elif fr.name in file_groups:
-                    fgm[(b, fr.link)] = file_groups[fr.name]
+                if file_group(fr.link) is not None:
+                    fgm[(b, fr.link)] = file_group(fr.link)
                 for h, X in fr.boxes:
                     box_frame.append(f)
                     half.append(h)
                     X_CS.append(X)
+            for link, what in rec.left:
+                if what not in ("plane", "soft body"):
+                    unswept[(b, link)] = what
+                    unswept_groups[(b, link)] = (default_group_mask(link == -1 and rec.fixed_base), file_group(link))
             for link, why in rec.unreadable:
                 self._warn(("unreadable", b, link), f"body {b} link {link}: its boxes cannot be read ({why}); "
                                                     "left to pybullet (declare them with BoxCCD.register_box)")
@@ -394,10 +401,9 @@ class World:
             self_collides=np.array(selfc, dtype=np.uint8), box_frame=np.array(box_frame, dtype=np.int64),
             half=half, X_CS=X_CS,
             radius=np.linalg.norm(X_CS[:, :3, 3], axis=1) + np.linalg.norm(half, axis=1),
-            frame_boxes=frame_boxes, frames_of=frames_of, filters=Filters(keys, defaults, fgm, self.journal),
-            free_frames=np.flatnonzero(kind == FREE).tolist(),
-            unswept={(b, link): what for b in ids for link, what in self._bodies[b].left
-                     if what not in ("plane", "soft body")},
+            frame_boxes=frame_boxes, frames_of=frames_of,
+            filters=Filters(keys, defaults, fgm, self.journal, unswept_groups),
+            free_frames=np.flatnonzero(kind == FREE).tolist(), unswept=unswept,
             damping=np.array([self.damping(b) for b, _ in keys], dtype=np.float64).reshape(-1, 2),
             other_rigid=rigid, other_chains=chains, other_fixed=fixed, other_stuck=stuck)
 
@@ -424,6 +430,13 @@ class World:
             if rec.untracked:
                 lines.append(f"  not tracked: body {b}: {_untracked(rec)} ({rec.untracked_why})")
         return "\n".join(lines)
+
+
+def _file_group(rec, file_groups, link):
+    """The (group, mask) a body's file sets on a link ({link name: ...} of a URDF), or None."""
+    if link in rec.groups:
+        return rec.groups[link]
+    return file_groups.get(rec.names.get(link))
 
 
 def _untracked(rec) -> str:

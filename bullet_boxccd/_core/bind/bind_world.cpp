@@ -177,11 +177,11 @@ void init_sweeper(Sweeper *self, const Index<-1> &box_frame, const In<-1> &radiu
 
 // The fast boxes of the state, with `frames` and `twists` (velocity reads) put first:
 // None if none is fast, else ([box], the largest reach of the others, [their frames]).
-nb::object sweeper_fast(Sweeper &s, double dt, nb::handle frames, nb::handle twists) {
+nb::object sweeper_fast(Sweeper &s, double dt, nb::handle frames, nb::handle twists, double clamp) {
     if (!frames.is_none()) put_twists(s, frames, twists);
-    const Sweeper::Fast f = s.fast(dt);
-    if (f.boxes.empty() && f.broken.empty()) return nb::none();
-    return nb::make_tuple(to_list(f.boxes), f.slack, to_list(f.frames), to_list(f.broken));
+    const Sweeper::Fast f = s.fast(dt, clamp);
+    if (f.boxes.empty() && f.broken.empty() && f.clamped.empty()) return nb::none();
+    return nb::make_tuple(to_list(f.boxes), f.slack, to_list(f.frames), to_list(f.broken), to_list(f.clamped));
 }
 
 // (n, 6): velocity_at of each row of `after` (n, 6: v, w after the step; the velocities
@@ -311,7 +311,10 @@ void bind_world(nb::module_ &m) {
             "The frames' state (F, 13): a numpy view of the sweeper's own rows.")
         .def("put_twists", &put_twists, nb::arg("frames"), nb::arg("twists"))
         .def("put_poses", &put_poses, nb::arg("frames"), nb::arg("poses"))
-        .def("fast", &sweeper_fast, nb::arg("dt"), nb::arg("frames") = nb::none(), nb::arg("twists") = nb::none())
+        .def("fast", &sweeper_fast, nb::arg("dt"), nb::arg("frames") = nb::none(), nb::arg("twists") = nb::none(),
+             nb::arg("clamp") = INFINITY,
+             "(fast boxes, slack, their frames, frames not finite, frames of boxes with a finite sweep reach "
+             "at_speed(clamp)), or None if all are empty.")
         .def(
             "at_speed",
             [](const Sweeper &s, nb::handle frames, double speed, double rel_tol) {

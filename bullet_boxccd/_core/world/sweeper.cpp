@@ -155,7 +155,7 @@ Sweeper::Sweeper(const Tables &t)
     for (size_t f = 0; f < t.n_frames; ++f) state_[kFrameStateSize * f + FrameState::kOrientation + 3] = 1.0;
 }
 
-Sweeper::Fast Sweeper::fast(double dt) const {
+Sweeper::Fast Sweeper::fast(double dt, double clamp) const {
     Fast out;
     for (size_t i = 0; i < n_; ++i) {
         const int64_t f = box_frame_[i];
@@ -164,6 +164,7 @@ Sweeper::Fast Sweeper::fast(double dt) const {
             out.broken.push_back(f);
             continue;
         }
+        if (std::isfinite(sweep_reach_[i]) && at_clamp(f, clamp)) out.clamped.push_back(f);
         if (r > sweep_reach_[i]) {
             out.boxes.push_back(int64_t(i));
             out.frames.push_back(f);
@@ -173,20 +174,24 @@ Sweeper::Fast Sweeper::fast(double dt) const {
     }
     std::sort(out.frames.begin(), out.frames.end());
     out.frames.erase(std::unique(out.frames.begin(), out.frames.end()), out.frames.end());
-    std::sort(out.broken.begin(), out.broken.end());
-    out.broken.erase(std::unique(out.broken.begin(), out.broken.end()), out.broken.end());
+    for (auto *v : {&out.broken, &out.clamped}) {
+        std::sort(v->begin(), v->end());
+        v->erase(std::unique(v->begin(), v->end()), v->end());
+    }
     return out;
+}
+
+bool Sweeper::at_clamp(int64_t f, double speed, double rel_tol) const {
+    // pybullet clamps each component of a body's velocity and spin (world axes) on its own.
+    const double *twist = state_.data() + kFrameStateSize * f + FrameState::kVelocity;  // v, w
+    return std::any_of(twist, twist + 6, [&](double c) { return std::fabs(c) >= speed - rel_tol * speed; });
 }
 
 std::vector<int64_t> Sweeper::at_speed(const std::vector<int64_t> &frames, double speed, double rel_tol) const {
     std::vector<int64_t> out;
     for (const int64_t f : frames) {
         check_index(f, n_frames(), "frame");
-        const double *row = state_.data() + kFrameStateSize * f;
-        // pybullet clamps each component of a body's velocity and spin (world axes) on its own.
-        const double *twist = row + FrameState::kVelocity;  // v, w
-        if (std::any_of(twist, twist + 6, [&](double c) { return std::fabs(c) >= speed - rel_tol * speed; }))
-            out.push_back(f);
+        if (at_clamp(f, speed, rel_tol)) out.push_back(f);
     }
     return out;
 }

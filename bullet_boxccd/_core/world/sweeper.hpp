@@ -9,6 +9,7 @@
 // Nothing here runs Python: callers may release the GIL around any of it.
 #pragma once
 
+#include <cmath>
 #include <cstddef>
 #include <cstdint>
 #include <utility>
@@ -97,18 +98,21 @@ class Sweeper {
     // The boxes that move farther than their sweep reach in a step of dt (a broken
     // body, whose reach is not finite, is left to pybullet), their frames (sorted,
     // unique), and the largest reach of the others (the slack of pybullet's own
-    // detection).
+    // detection); with `clamp`, the frames of the boxes swept as free or kinematic ones
+    // (a finite sweep reach) at that speed (at_speed).
     struct Fast {
         std::vector<int64_t> boxes, frames;
         double slack = 0.0;
         std::vector<int64_t> broken;  // frames whose state is not finite (pybullet's alone)
+        std::vector<int64_t> clamped;  // frames of boxes with a finite reach at_speed(clamp)
     };
-    Fast fast(double dt) const;
+    Fast fast(double dt, double clamp = INFINITY) const;
 
     // Those of the frames (checked) with a component of velocity or spin (world axes)
     // of magnitude `speed` or more, less rel_tol of it (pybullet's velocity clamp, which
     // cuts each component on its own; a velocity the world was put at can be above it).
     std::vector<int64_t> at_speed(const std::vector<int64_t> &frames, double speed, double rel_tol) const;
+    bool at_clamp(int64_t frame, double speed, double rel_tol = 1e-9) const;
 
     // The farthest a box with a finite sweep reach moves in a step of dt (the boxes
     // given an infinite reach are swept elsewhere, on paths of their own).
