@@ -698,6 +698,25 @@ def test_a_box_link_swinging_at_a_shape_left_to_pybullet_names_it(cid):
     assert [m.split(" is in the reach")[0] for m in messages] == [f"body {sphere} link -1 (sphere)"], messages
 
 
+def test_a_kinematic_box_teleported_through_a_shape_left_to_pybullet_names_it(cid):
+    """A mass-0 plate the user teleports 0.3 m a step (pybullet sees no motion) passes a
+    sphere on its way: the sphere is named in the step of that jump, not before."""
+    reset(cid)
+    plate = box(cid, [0.05, 0.3, 0.3], [-1.5, 0, 0], mass=0.0)
+    sphere = p.createMultiBody(0.1, p.createCollisionShape(p.GEOM_SPHERE, radius=0.05, physicsClientId=cid),
+                               physicsClientId=cid)
+    ccd = BoxCCD(cid)
+    named = []
+    for k in range(8):
+        x = -1.5 + 0.3 * (k + 1)
+        p.resetBasePositionAndOrientation(plate, [x, 0, 0], [0, 0, 0, 1], physicsClientId=cid)
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            ccd.step()
+        named += [(k, round(x, 2), str(w.message).split(" is in")[0]) for w in caught]
+    assert named == [(4, 0.0, f"body {sphere} link -1 (sphere)")], named
+
+
 def test_a_box_whose_state_is_not_finite_is_named_once_and_left_to_pybullet(cid):
     """A free box given a NaN velocity is named in one warning and left to pybullet; a fast
     cube beside it is still stopped at the wall."""

@@ -476,7 +476,8 @@ class BoxCCD:
         if sw is None and not (stepped and fast is None):
             sw = sweep(self.cid, t, st, h, self.fit_tolerance, self.tolerances, self.penetration, self.stats, t0, fast,
                        self._fast_seen, self._near_unswept if self._unswept else None)
-        jw = jump_sweep(self.cid, t, st, h, self.fit_tolerance, self.tolerances, self.penetration, self.stats)
+        jw = jump_sweep(self.cid, t, st, h, self.fit_tolerance, self.tolerances, self.penetration, self.stats,
+                        self._near_unswept if self._unswept else None)
         found = self._chains_find(h)
         if sw is None and jw is None and not found:
             return [], 1.0
@@ -556,7 +557,7 @@ class BoxCCD:
         each; and so for joints. (A pybullet step the world went back from is not the world
         the user gets.)"""
         if self._chains.clamp_seen:
-            self._chains.name_clamped()
+            self._chains.name_clamped(self._name_clamp)
         if not self._fast_seen:
             return
         frames = sorted(self._fast_seen)

@@ -186,21 +186,24 @@ class Articulated:
                 self._warn(("not finite", rec.body), not_finite_message(rec.body))
                 rec.motion = rec.base_state = None
                 continue
-            if np.any(np.abs(rec.qdot) == MAX_VELOCITY) and \
-                    self._max_velocity.get(rec.body, MAX_VELOCITY) == MAX_VELOCITY:
+            if (np.any(np.abs(rec.qdot) == MAX_VELOCITY) or np.any(np.abs(rec.base_state[7:13]) == MAX_VELOCITY)) \
+                    and self._max_velocity.get(rec.body, MAX_VELOCITY) == MAX_VELOCITY:
                 self.clamp_seen.append(rec)
             rec.motion = _core.ChainMotion(rec.chain.core, rec.base_state, q, rec.qdot, dt)
             rec.paths = {}
             state.rows[rec.frame_index] = rec.motion.frame_rows(rec.link_of_frame)
             state.fresh.update(rec.frames)
 
-    def name_clamped(self):
+    def name_clamped(self, name_base):
         """Name the joints of the bodies in ``clamp_seen`` (read at pybullet's default joint
-        velocity clamp in a piece of the step) that the step leaves at it: a pybullet step the
+        velocity clamp in a piece of the step) that the step leaves at it, and tell
+        ``name_base`` those whose base it leaves at the velocity clamp: a pybullet step the
         world went back from is not the world the user gets."""
         for rec in self.clamp_seen:
             if rec.qdot is not None and np.any(np.abs(rec.qdot) >= MAX_VELOCITY):
                 self._at_clamp(rec)
+            if rec.base_state is not None and np.any(np.abs(rec.base_state[7:13]) >= MAX_VELOCITY):
+                name_base(rec.body)
         self.clamp_seen = []
 
     def _at_clamp(self, rec):

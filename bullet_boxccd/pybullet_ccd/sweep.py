@@ -170,12 +170,14 @@ def _hits(pairs, tau):
     return [(i, j, t) for (i, j), t in zip(pairs[hit].tolist(), tau[hit].tolist())] if len(hit) else []
 
 
-def moves_into(cid, tables, moves, frozen_of, widen, fit_tolerance, tolerances, penetration, stats):
+def moves_into(cid, tables, moves, frozen_of, widen, fit_tolerance, tolerances, penetration, stats,
+               near_unswept=None):
     """Kinematic frames moving straight from pose to pose (``moves``: {frame: (pose0,
     pose1)}) against the free bodies standing still: ``frozen_of(partners)`` gives the
     (F, 13) state of the free frames pybullet's broad phase finds within ``widen`` of the
     moves. A Sweep whose first rows are the moving boxes and whose hits have a moving box
-    first; None if nothing was met."""
+    first; None if nothing was met. ``near_unswept`` is told the shapes left to pybullet
+    within a moving box's reach (pybullet sees nothing of such a move)."""
     if not moves:
         return None
     frames = sorted(moves)
@@ -185,6 +187,10 @@ def moves_into(cid, tables, moves, frozen_of, widen, fit_tolerance, tolerances, 
         poses0[f], poses1[f] = moves[f]
     rows = _core.path_rows_between(poses0, poses1, moving, tables.box_frame, tables.X_CS, tables.half)
     bounds = _core.swept_bounds(rows)
+    if near_unswept is not None:
+        near = unswept_near(cid, tables, tables.box_frame[moving].tolist(), bounds, 0.0)
+        if near:
+            near_unswept(near)
     partners = [f for f in _partners(cid, tables, bounds, widen, frames) if tables.kind[f] == FREE]
     if not partners:
         return None
@@ -214,9 +220,10 @@ def step_reach(state, tables, dt):
                          * tables.radius) * dt))
 
 
-def jump_sweep(cid, tables, state, dt, fit_tolerance, tolerances, penetration, stats):
+def jump_sweep(cid, tables, state, dt, fit_tolerance, tolerances, penetration, stats, near_unswept=None):
     """The kinematic frames' jumps (from E0 to P1, before the step's physics) against the
-    free bodies where the step started (on Bullet's path at tau = 0)."""
+    free bodies where the step started (on Bullet's path at tau = 0); ``near_unswept``: as
+    for ``moves_into``."""
     if not state.jumps:
         return None
 
@@ -228,4 +235,4 @@ def jump_sweep(cid, tables, state, dt, fit_tolerance, tolerances, penetration, s
         return start
 
     return moves_into(cid, tables, state.jumps, at_start, step_reach(state, tables, dt), fit_tolerance, tolerances,
-                      penetration, stats)
+                      penetration, stats, near_unswept)
