@@ -147,7 +147,7 @@ class BoxCCD:
         # and those of them struck by an impact then (its impulse acts whole at that start);
         # the frames a step stopped at an impact, struck as the next step begins.
         self._acted, self._struck, self._struck_next = set(), set(), set()
-        self._fast_seen = set()  # the frames swept as fast, or read at the velocity clamp, in the current (sub)step
+        self._clamp_candidates = set()  # frames swept as fast, or read at the velocity clamp, in the current (sub)step
         self._sync()
 
     # ------------------------------------------------------------ the world
@@ -172,7 +172,7 @@ class BoxCCD:
             rigid_reach = self._sweep_reach.copy()
             rigid_reach[self._chains.boxes] = math.inf  # swept on their own paths (articulated)
             self._state = FrameState(self.cid, t, rigid_reach, self._chains.frames, self._not_finite,
-                                     self._fast_seen.update)
+                                     self._clamp_candidates.update)
             self._others = Others(self.cid, self.world.journal, t.other_rigid, t.other_chains, t.other_fixed,
                                   t.other_stuck, self._warn, self.world.damping)
             self._watched = bool(self._state.moving) or bool(self._chains.watched)
@@ -227,7 +227,7 @@ class BoxCCD:
         """``p.stepSimulation()``, swept, with partial steps from the contacts pybullet would
         resolve wrongly; returns this step's contacts. Raises ``ClientDisconnectedError`` if
         the client was disconnected."""
-        self._fast_seen.clear()  # (what an interrupted step saw is not this step's)
+        self._clamp_candidates.clear()  # (what an interrupted step saw is not this step's)
         self._chains.clamp_seen.clear()
         try:
             events = self._step_once()
@@ -282,7 +282,7 @@ class BoxCCD:
                 # the step unless it finds a contact.
                 st.begin_kinematic((), ())
                 sw = sweep(cid, self.world.tables, st, self._dt, self.fit_tolerance, self.tolerances,
-                           self.penetration, self.stats, time.perf_counter(), fast, self._fast_seen,
+                           self.penetration, self.stats, time.perf_counter(), fast, self._clamp_candidates,
                            self._near_unswept if self._unswept else None)
                 if sw is None:
                     self._name_clamped()
@@ -475,7 +475,7 @@ class BoxCCD:
         st.end_kinematic(h)
         if sw is None and not (stepped and fast is None):
             sw = sweep(self.cid, t, st, h, self.fit_tolerance, self.tolerances, self.penetration, self.stats, t0, fast,
-                       self._fast_seen, self._near_unswept if self._unswept else None)
+                       self._clamp_candidates, self._near_unswept if self._unswept else None)
         jw = jump_sweep(self.cid, t, st, h, self.fit_tolerance, self.tolerances, self.penetration, self.stats,
                         self._near_unswept if self._unswept else None)
         found = self._chains_find(h)
@@ -558,10 +558,10 @@ class BoxCCD:
         the user gets.)"""
         if self._chains.clamp_seen:
             self._chains.name_clamped(self._name_clamp)
-        if not self._fast_seen:
+        if not self._clamp_candidates:
             return
-        frames = sorted(self._fast_seen)
-        self._fast_seen.clear()
+        frames = sorted(self._clamp_candidates)
+        self._clamp_candidates.clear()
         for f in self._state.sweeper.at_speed(frames, MAX_VELOCITY, 1e-9):
             self._name_clamp(self.world.tables.keys[f][0])
 
