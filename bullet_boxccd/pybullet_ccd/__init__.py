@@ -227,20 +227,20 @@ class BoxCCD:
         """``p.stepSimulation()``, swept, with partial steps from the contacts pybullet would
         resolve wrongly; returns this step's contacts. Raises ``ClientDisconnectedError`` if
         the client was disconnected."""
-        self._clamp_candidates.clear()  # (what an interrupted step saw is not this step's)
-        self._chains.clamp_seen.clear()
         try:
             events = self._step_once()
         except pybullet.error:
+            self._clamp_candidates.clear()  # (what an interrupted step saw is not the next one's)
+            self._chains.clamp_seen.clear()
             self._check_connected()
             raise
         j = self.world.journal
         j.impulses.clear()  # pybullet cleared the user's forces
-        over = [b for b, serial in j.over_clamp.items() if serial > self._over_seen]
-        if over:  # given a velocity above the clamp, which pybullet cut as it stepped
-            self._over_seen = max(j.over_clamp.values())
-            for b in over:
-                self._name_clamp(b)
+        if j.last_over > self._over_seen:  # given a velocity above the clamp, which pybullet cut as it stepped
+            for b, serial in j.over_clamp.items():
+                if serial > self._over_seen:
+                    self._name_clamp(b)
+            self._over_seen = j.last_over
         return events
 
     def _check_connected(self):
@@ -274,7 +274,8 @@ class BoxCCD:
             self._known = True
             fast = st.fast(self._dt, read=True) if st.moving else None
             if fast is None and (not self._chains.watched or self._chains.idle(self._dt, st, self._unswept)):
-                self._name_clamped()
+                if self._clamp_candidates or self._chains.clamp_seen:
+                    self._name_clamped()
                 return []
             sw = None
             if not self._chains.bodies:

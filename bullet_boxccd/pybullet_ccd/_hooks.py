@@ -112,6 +112,7 @@ class Journal:
     base_moved: dict = field(default_factory=dict)
     velocity_set: dict = field(default_factory=dict)  # body -> serial of the user's latest resetBaseVelocity
     over_clamp: dict = field(default_factory=dict)  # body -> serial of the latest one above MAX_VELOCITY
+    last_over: int = 0  # the latest serial in ``over_clamp``
     restored: int = 0  # restoreState: every body jumped
     last_move: int = 0  # the latest of the three above
     stepped: int = 0  # the user called stepSimulation directly
@@ -606,7 +607,7 @@ def _reset_base_velocity(cid, a, result):
     b = int(a["objectUniqueId"])
     j.velocity_set[b] = j.last_move = next(_serial)
     if _above(a.get("linearVelocity"), MAX_VELOCITY) or _above(a.get("angularVelocity"), MAX_VELOCITY):
-        j.over_clamp[b] = j.last_move
+        j.over_clamp[b] = j.last_over = j.last_move
 
 
 def _above(vector, limit):
