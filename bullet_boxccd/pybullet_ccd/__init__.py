@@ -55,6 +55,13 @@ from .world import STATIC, World, warn_once
 __all__ = ["BoxCCD", "BoxCCDWarning", "ClientDisconnectedError", "CCDEvent", "CCDStats"]
 
 _CLAMP = 0.999 * 0.25 * math.pi  # (rad) just under Bullet's largest turn of a body in one step
+# The default budget of partial steps a step takes: each steps the whole world, so as many as
+# step this many moving bodies and links in all, within these bounds. A cascade of struck thin
+# boxes in a small world needs 20 to 30 (a row of dominoes: each spins at 2,000 rad/s, a
+# partial step of pi/4 being 0.4 ms); in a crowd 8 already cost more than numSubSteps=16
+# (docs/design.md, mechanisms tried).
+_PARTIAL_BODY_STEPS = 256
+_PARTIAL_STEPS = (8, 32)
 
 
 class BoxCCD:
@@ -90,12 +97,14 @@ class BoxCCD:
         wrong). At least 0. Default 1e-3.
     self_collision_bodies : iterable of int
         Bodies whose links collide with each other.
-    max_partial_steps : int
+    max_partial_steps : int or None
         Partial steps (the rest of the step simulated again from a contact, or a piece of
         it under ``max_turn``) after which a contact no longer takes the world back: the
         rest goes to the step's end in one piece, and the bodies of each remaining contact
         go back to it on their own, with the velocities they had there (pybullet resolves
-        it as the next step begins). At least 0. Default 8.
+        it as the next step begins). At least 0. Default None: as many as step 256 moving
+        bodies (and links) in all, at least 8 and at most 32 (each partial step steps the
+        whole world: 32 in a world of up to 8 moving bodies, 8 from 32 on).
     max_turn : float
         The largest turn (rad) a body of the contact the world was taken back to makes in
         a partial step: a longer rest of the step is taken in even pieces. In (0, pi/4]:
@@ -110,14 +119,15 @@ class BoxCCD:
     def __init__(self, physics_client_id: int = 0, *, sweep_threshold: float = 0.25, sweep_distance: float = 0.01,
                  fit_tolerance: float = 0.05,
                  penetration: float = 1e-5, depth_tolerance: float = 1e-3, self_collision_bodies=(),
-                 max_partial_steps: int = 8, max_turn: float = _CLAMP, tolerances: Tolerances = DEFAULT_TOLERANCES):
+                 max_partial_steps: int | None = None, max_turn: float = _CLAMP,
+                 tolerances: Tolerances = DEFAULT_TOLERANCES):
         self.cid = _client(physics_client_id)
         self.sweep_threshold = _number("sweep_threshold", sweep_threshold, 0.0, math.inf)
         self.sweep_distance = _number("sweep_distance", sweep_distance, 0.0, math.inf)
         self.fit_tolerance = _number("fit_tolerance", fit_tolerance, 0.0, 1.0, open_low=True)
         self.penetration = _number("penetration", penetration, 0.0, 1e-3, open_low=True)
         self.depth_tolerance = _number("depth_tolerance", depth_tolerance, 0.0, math.inf)
-        self.max_partial_steps = _count("max_partial_steps", max_partial_steps)
+        self.max_partial_steps = None if max_partial_steps is None else _count("max_partial_steps", max_partial_steps)
         self.max_turn = _number("max_turn", max_turn, 0.0, 0.25 * math.pi, open_low=True)
         if not isinstance(tolerances, Tolerances):
             raise InvalidInputError(f"tolerances: expected a Tolerances, got {type(tolerances).__name__}")
@@ -176,6 +186,9 @@ class BoxCCD:
             self._others = Others(self.cid, self.world.journal, t.other_rigid, t.other_chains, t.other_fixed,
                                   t.other_stuck, self._warn, self.world.damping)
             self._watched = bool(self._state.moving) or bool(self._chains.watched)
+            moving = len(self._state.moving) + len(self._chains.frames)
+            self._partial_steps = self.max_partial_steps if self.max_partial_steps is not None else \
+                min(_PARTIAL_STEPS[1], max(_PARTIAL_STEPS[0], _PARTIAL_BODY_STEPS // max(moving, 1)))
             self._unswept = {k: v for k, v in t.unswept.items() if ("unswept", *k) not in self._warned}
             self._known = False
             self.stats.tracked_boxes = len(t.half)
@@ -382,11 +395,11 @@ class BoxCCD:
                     self._state.begin(self._known)
                     raw.stepSimulation(physicsClientId=self.cid)
                     self._state.read_velocities()
-                    if 0 < k <= self.max_partial_steps:  # (not the very last piece: see below)
+                    if 0 < k <= self._partial_steps:  # (not the very last piece: see below)
                         piece = self._within_clamp(piece, h)
                 t_sim = time.perf_counter()
                 self.stats.seconds["step"] += t_sim - t_start
-                back = k < self.max_partial_steps
+                back = k < self._partial_steps
                 found, tau = self._sweep(piece, t_sim, user_moved, back, stepped, fast, sw)
                 stepped, fast, sw = False, None, None
                 events += [_shifted(e, offset + elapsed, dt) for e in found]
@@ -398,7 +411,7 @@ class BoxCCD:
                 # again, and the rest goes to the step's end in one piece (after the last piece
                 # an impact began, taken again shorter if it spun a body past the limit).
                 moved_static, user_moved = [], set()
-                piece = self._piece(h - elapsed) if k < self.max_partial_steps else h - elapsed
+                piece = self._piece(h - elapsed) if k < self._partial_steps else h - elapsed
                 self.stats.partial_steps += 1
                 self._take(piece, h)
                 t_start = time.perf_counter()
