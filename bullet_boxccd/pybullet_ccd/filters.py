@@ -52,22 +52,21 @@ class Filters:
 
     def allowed(self, fa: int, fb: int) -> bool:
         """Whether pybullet lets frames fa and fb collide."""
-        rule = self.rules.get(pair_rule_key(*self.keys[fa], *self.keys[fb])) if self.rules else None
-        if rule is not None:
-            return rule
-        ab = (self.group[fa] & self.mask[fb]) != 0
-        ba = (self.group[fb] & self.mask[fa]) != 0
-        return bool(ab or ba) if self.mode == OR_MODE else bool(ab and ba)
+        return self._decide(fa, self.keys[fb], self.group[fb], self.mask[fb])
 
     def allowed_shape(self, fa: int, key) -> bool:
         """Whether pybullet lets frame fa collide with the shape of (body, link) ``key`` in
         ``others``."""
+        return self._decide(fa, key, *self.others[key])
+
+    def _decide(self, fa, key, group, mask) -> bool:
+        """Frame fa against the collision object ``key`` of that group and mask: its pair
+        rule, else the group/mask test of the filter mode."""
         rule = self.rules.get(pair_rule_key(*self.keys[fa], *key)) if self.rules else None
         if rule is not None:
             return rule
-        g, m = self.others[key]
-        ab = (self.group[fa] & m) != 0
-        ba = (g & self.mask[fa]) != 0
+        ab = (self.group[fa] & mask) != 0
+        ba = (group & self.mask[fa]) != 0
         return bool(ab or ba) if self.mode == OR_MODE else bool(ab and ba)
 
     def allowed_pairs(self, fa: np.ndarray, fb: np.ndarray) -> np.ndarray:
