@@ -112,9 +112,11 @@ class Articulated:
             rec.base_idle = per_link.pop(-1, None)
             rec.link_idle = (list(per_link), *zip(*per_link.values())) if per_link else None
             rec.layout = joint_layout(rec.chain)
-        # The bodies a box of which can meet another tracked box: one on another body, or its own (self-collision).
+        # The bodies a box of which can meet another tracked box (one on another body, or its own: self-collision),
+        # or come near a shape of another body left to pybullet (to be named).
         self.watched = [rec for rec in self.bodies.values()
-                        if len(tables.half) > len(rec.boxes) or (rec.ancestors is not None and len(rec.boxes) > 1)]
+                        if len(tables.half) > len(rec.boxes) or (rec.ancestors is not None and len(rec.boxes) > 1)
+                        or any(key[0] != rec.body for key in tables.unswept)]
         self.frames = {f for rec in self.bodies.values() for f in rec.frames}
         self._rigid = len(tables.keys) > len(self.frames)  # whether any box is not on an articulated body
         self.boxes = np.array(sorted(i for rec in self.bodies.values() for _, i in rec.boxes), dtype=np.int64)
