@@ -136,7 +136,7 @@ class BoxCCD:
         self._warned = set()  # what was said of this world (forgotten when it is reset; of a body, when it is)
         self._renewed_seen = 0  # the latest body removal or creation whose warnings were forgotten
         self._over_seen = 0  # the latest velocity given above the clamp that was looked at
-        self._warn = warn_once(self._warned)
+        self._warn = warn_once(self._warned, self.cid)
         if self.sweep_threshold > 1.0:  # (of the knob, not of the world: said once)
             warn_once(set())(("sweep_threshold",),
                              f"sweep_threshold = {self.sweep_threshold:g}: a box that moves less than that many of "

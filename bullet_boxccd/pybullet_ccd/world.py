@@ -466,10 +466,14 @@ def outside_stacklevel() -> int:
     return level
 
 
-def warn_once(seen: set):
-    """A warner that emits each key's BoxCCDWarning once, at the user's line."""
+def warn_once(seen: set, cid: int = 0):
+    """A warner that emits each key's BoxCCDWarning once, at the user's line; of a world of
+    a client other than the first (0), the message names it (and so Python's warning filter,
+    which shows a message once per line, tells it from the same of another client)."""
+    prefix = f"physics client {cid}: " if cid else ""
+
     def warn(key, message):
         if key not in seen:
             seen.add(key)
-            warnings.warn(message, BoxCCDWarning, stacklevel=outside_stacklevel())
+            warnings.warn(prefix + message, BoxCCDWarning, stacklevel=outside_stacklevel())
     return warn
