@@ -674,10 +674,11 @@ def test_a_shape_left_to_pybullet_is_named_as_pybullet_collides_it(cid, case, na
         assert (max(contacts) > 0) == named, contacts
 
 
-def test_a_box_link_swinging_at_a_shape_left_to_pybullet_names_it(cid):
-    """A box link spun about its centre at 80 rad/s, by a fixed base with a box far away
-    (so the robot is watched), sweeps through a static sphere 15 cm from its axis: the
-    sphere is named, as for a free box."""
+@pytest.mark.parametrize("other_box", [True, False])
+def test_a_box_link_swinging_at_a_shape_left_to_pybullet_names_it(cid, other_box):
+    """A box link spun about its centre at 80 rad/s by a fixed base sweeps through a static
+    sphere 15 cm from its axis: the sphere is named, as for a free box, whether or not the
+    world holds another box the robot could meet."""
     reset(cid)
     link = p.createCollisionShape(p.GEOM_BOX, halfExtents=[0.2, 0.02, 0.02], physicsClientId=cid)
     base = p.createCollisionShape(p.GEOM_BOX, halfExtents=[0.05] * 3, physicsClientId=cid)
@@ -689,7 +690,8 @@ def test_a_box_link_swinging_at_a_shape_left_to_pybullet_names_it(cid):
     p.setJointMotorControl2(arm, 0, p.VELOCITY_CONTROL, force=0, physicsClientId=cid)
     sphere = p.createMultiBody(0, p.createCollisionShape(p.GEOM_SPHERE, radius=0.03, physicsClientId=cid),
                                basePosition=[0.3, 0.15, 0], physicsClientId=cid)
-    box(cid, [0.05] * 3, [3, 3, 3], mass=0.0)
+    if other_box:
+        box(cid, [0.05] * 3, [3, 3, 3], mass=0.0)
     p.resetJointState(arm, 0, 0, 80, physicsClientId=cid)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
@@ -733,6 +735,34 @@ def test_a_box_whose_state_is_not_finite_is_named_once_and_left_to_pybullet(cid)
     assert messages == [f"body {broken}: its state in pybullet is not finite (NaN or infinite): pybullet steps it "
                         "alone, unswept"], messages
     assert x_of(cid, cube) < 0.0
+
+
+@pytest.mark.parametrize("when", ["before", "after"])
+def test_a_fixed_wall_placed_at_nan_is_named_once(cid, when):
+    """A static wall the user places at a NaN position, before BoxCCD is made or after,
+    meets nothing in pybullet, and a cube thrown at it passes where it was, as in plain
+    pybullet: BoxCCD names the wall once, as it names a free box left not finite."""
+    ends = []
+    for use in (False, True):
+        reset(cid)
+        wall = box(cid, [0.005, 1, 1], [0, 0, 0], mass=0.0)
+        cube = box(cid, [0.05] * 3, [-0.5, 0, 0])
+        throw(cid, cube)
+        if when == "before":
+            p.resetBasePositionAndOrientation(wall, [float("nan"), 0, 0], [0, 0, 0, 1], physicsClientId=cid)
+
+        def place(k):
+            if when == "after" and k == 1:
+                p.resetBasePositionAndOrientation(wall, [float("nan"), 0, 0], [0, 0, 0, 1], physicsClientId=cid)
+
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            run(cid, use, 10, place)
+        messages = [str(w.message) for w in caught if issubclass(w.category, BoxCCDWarning)]
+        assert messages == ([f"body {wall}: its state in pybullet is not finite (NaN or infinite): pybullet steps "
+                             "it alone, unswept"] if use else []), messages
+        ends.append(x_of(cid, cube))
+    assert ends[0] == ends[1] > 0.5
 
 
 def test_a_plane_of_normal_zero_is_left_to_pybullet_unnamed(cid):
@@ -889,6 +919,31 @@ def test_a_disconnected_client_is_a_typed_error_and_a_reconnected_one_is_named()
             ccd.step()
     finally:
         p.disconnect(again)
+
+
+def test_the_same_warning_of_two_clients_is_shown_for_each(cid):
+    """Two worlds stepped on one line, each with a box at pybullet's velocity clamp: under
+    Python's default warning filter (a message once per line) both are shown, the second
+    naming its client."""
+    other = p.connect(p.DIRECT)
+    try:
+        ccds = []
+        for c in (cid, other):
+            reset(c)
+            cube = p.loadURDF(os.path.join(pybullet_data.getDataPath(), "cube_small.urdf"), physicsClientId=c)
+            p.resetBaseVelocity(cube, [150, 0, 0], [0, 0, 0], physicsClientId=c)
+            ccds.append(BoxCCD(c))
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.resetwarnings()
+            warnings.simplefilter("default")
+            for _ in range(3):
+                for ccd in ccds:
+                    ccd.step()
+        said = [str(w.message) for w in caught if issubclass(w.category, BoxCCDWarning)]
+        first = "" if cid == 0 else f"physics client {cid}: "
+        assert [m.split(" moves or turns")[0] for m in said] == [first + "body 0", f"physics client {other}: body 0"]
+    finally:
+        p.disconnect(other)
 
 
 @pytest.mark.parametrize("substeps", [0, 2])

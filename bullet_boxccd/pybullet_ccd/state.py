@@ -58,7 +58,7 @@ class FrameState:
         static = np.flatnonzero(tables.kind == STATIC).tolist()
         self._static = set(static)
         self.fresh = set()  # moving or kinematic frames whose poses in ``rows`` are this step's (read or set)
-        self.read_poses(static)
+        self._read_static(static)
         # Frames whose velocity is read at every step (an articulated body's are read
         # whole: articulated.py).
         self.moving = [f for f in tables.moving if f not in articulated]
@@ -111,6 +111,15 @@ class FrameState:
             self.sweeper.put_poses(frames, [pose[f]() for f in frames])
             self.fresh.update(frames)
 
+    def _read_static(self, frames):
+        """Read the poses of static ``frames``; those pybullet holds not finite (the user placed
+        them so) are told to ``not_finite``: nothing meets them, in pybullet or in a sweep."""
+        self.read_poses(frames)
+        if frames:
+            broken = np.flatnonzero(~np.isfinite(self.rows[frames][:, POSE]).all(axis=1))
+            if len(broken):
+                self._not_finite([frames[k] for k in broken.tolist()])
+
     def stale(self, frames):
         """Those of ``frames`` whose poses in ``rows`` are not this step's (a static frame's
         are, unless the user gave it a velocity: Bullet moves it then)."""
@@ -136,7 +145,7 @@ class FrameState:
         self.jumps = {}
         if not frames:
             return
-        self.read_poses(frames)
+        self._read_static(frames)
         self.read_twists(frames)
         starts = _core.frame_poses(self.rows, dt, np.array(frames, dtype=np.int64), np.zeros(len(frames)))
         t = self.tables
