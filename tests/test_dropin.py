@@ -751,7 +751,7 @@ def test_a_fixed_wall_placed_at_nan_is_named_once(cid, when):
         if when == "before":
             p.resetBasePositionAndOrientation(wall, [float("nan"), 0, 0], [0, 0, 0, 1], physicsClientId=cid)
 
-        def place(k):
+        def place(k, wall=wall):
             if when == "after" and k == 1:
                 p.resetBasePositionAndOrientation(wall, [float("nan"), 0, 0], [0, 0, 0, 1], physicsClientId=cid)
 
