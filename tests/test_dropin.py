@@ -765,6 +765,29 @@ def test_a_fixed_wall_placed_at_nan_is_named_once(cid, when):
     assert ends[0] == ends[1] > 0.5
 
 
+@pytest.mark.parametrize("where", [[float("nan"), 0, 0], [0, 0, float("inf")]])
+def test_a_free_box_teleported_to_a_pose_not_finite_is_named_once(cid, where):
+    """A free box the user places at a NaN or infinite position is named once, as one
+    whose velocity is not finite; a fast cube beside it is still stopped at the wall."""
+    reset(cid)
+    box(cid, [0.005, 1, 1], [0, 0, 0], mass=0.0)
+    broken = box(cid, [0.05] * 3, [-1.0, 0.5, 0])
+    cube = box(cid, [0.05] * 3, [-0.5, 0, 0])
+    throw(cid, cube)
+
+    def place(k):
+        if k == 1:
+            p.resetBasePositionAndOrientation(broken, where, [0, 0, 0, 1], physicsClientId=cid)
+
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        run(cid, True, 10, place)
+    messages = [str(w.message) for w in caught if issubclass(w.category, BoxCCDWarning)]
+    assert messages == [f"body {broken}: its state in pybullet is not finite (NaN or infinite): pybullet steps it "
+                        "alone, unswept"], messages
+    assert x_of(cid, cube) < 0.0
+
+
 def test_a_plane_of_normal_zero_is_left_to_pybullet_unnamed(cid):
     """Bullet's plane of normal 0 meets nothing: a box falls through it as in pybullet,
     and nothing is named (its half-space has no side to be under)."""

@@ -231,6 +231,8 @@ class BoxCCD:
             return [], [], set(range(len(t.keys)))
         moved = [f for b, s in j.moved.items() if s > seen for f in t.frames_of.get(b, ())]
         given = [f for b, s in j.velocity_set.items() if s > seen for f in t.frames_of.get(b, ())]
+        free = set(self._state.moving)
+        self._state.name_not_finite([f for f in moved if f in free])
         # (a joint reset moves a body's links, not its fixed base)
         bases = [f for b, s in j.base_moved.items() if s > seen for f in t.frames_of.get(b, ()) if t.kind[f] == STATIC]
         return bases, [f for f in given if t.kind[f] == STATIC], set(moved)

@@ -111,6 +111,14 @@ class FrameState:
             self.sweeper.put_poses(frames, [pose[f]() for f in frames])
             self.fresh.update(frames)
 
+    def name_not_finite(self, frames):
+        """Tell ``not_finite`` those of ``frames`` whose pose pybullet holds not finite now (a
+        pose the user gave; one read each, kept out of ``rows``)."""
+        pose = self._pose
+        broken = [f for f in frames if not all(math.isfinite(x) for part in pose[f]() for x in part)]
+        if broken:
+            self._not_finite(broken)
+
     def _read_static(self, frames):
         """Read the poses of static ``frames``; those pybullet holds not finite (the user placed
         them so) are told to ``not_finite``: nothing meets them, in pybullet or in a sweep."""
