@@ -158,6 +158,7 @@ class BoxCCD:
         # the frames a step stopped at an impact, struck as the next step begins.
         self._acted, self._struck, self._struck_next = set(), set(), set()
         self._clamp_candidates = set()  # frames swept as fast, or read at the velocity clamp, in the current (sub)step
+        self._damped = (None, None)  # (when read, a body with a damped joint)
         self._sync()
 
     # ------------------------------------------------------------ the world
@@ -327,6 +328,12 @@ class BoxCCD:
         if self.world.journal.pd_control:
             self._warn(("pd",), "with numSubSteps > 1 BoxCCD takes the substeps itself: torques of PD_CONTROL and "
                                 "STABLE_PD_CONTROL motors are computed again for each substep")
+        damped = self._damped_body()
+        if damped is not None:
+            self._warn(("joint damping",), f"with numSubSteps > 1 BoxCCD takes the substeps itself: the joint damping "
+                                           f"of body {damped} (and any other), which pybullet computes once a step "
+                                           "from the joint velocities it starts with, is computed again for each "
+                                           "substep, so its joints move slightly otherwise than in plain pybullet")
         events = []
         with self._substepping(dt, n):
             for k in range(n):
@@ -336,6 +343,20 @@ class BoxCCD:
                 struck, self._struck_next = self._struck_next, set()
         self._struck_next = struck
         return events
+
+    def _damped_body(self):
+        """A body with a joint that has damping, or None: given through changeDynamics, else
+        its file's (getJointInfo); read again when the world's bodies or a joint's damping
+        changed."""
+        j = self.world.journal
+        key = (self.stats.rediscoveries, j.last_joint_damping)
+        if self._damped[0] != key:
+            cid, given = self.cid, j.joint_damping
+            bodies = (raw.getBodyUniqueId(i, physicsClientId=cid) for i in range(raw.getNumBodies(physicsClientId=cid)))
+            found = next((b for b in bodies for link in range(raw.getNumJoints(b, physicsClientId=cid))
+                          if given.get((b, link), raw.getJointInfo(b, link, physicsClientId=cid)[6]) != 0.0), None)
+            self._damped = (key, found)
+        return self._damped[1]
 
     def _timed(self):
         """The world's step is a finite time > 0 (pybullet steps any other too)."""

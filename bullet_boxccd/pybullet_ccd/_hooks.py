@@ -120,6 +120,10 @@ class Journal:
     # substep when BoxCCD runs a world's substeps itself. (name, args) for raw calls.
     impulses: list = field(default_factory=list)
     pd_control: bool = False
+    # (body, link) -> joint damping given through changeDynamics (getJointInfo keeps the file's),
+    # and the serial of the latest such call.
+    joint_damping: dict = field(default_factory=dict)
+    last_joint_damping: int = 0
     search_paths: list = field(default_factory=list)
     # How to build again what pybullet will not describe: collision shape index ->
     # (function, kwargs) that made it, and maximal-coordinate body -> (function, kwargs,
@@ -340,6 +344,7 @@ def _forget(j, b):
     j.mjcf.pop(b, None)
     j.link_geometry.pop(b, None)
     j.damping.pop(b, None)
+    j.joint_damping = {k: v for k, v in j.joint_damping.items() if k[0] != b}
     j.impulses[:] = [x for x in j.impulses if _impulse_body(x) != b]  # pybullet dropped them with the body
 
 
@@ -514,6 +519,10 @@ def _load_soft_body(cid, a, result):
 
 
 def _change_dynamics(cid, a, result):
+    if a.get("jointDamping") is not None and float(a["jointDamping"]) >= 0.0:  # (pybullet ignores one below 0)
+        j = journal(cid)
+        j.joint_damping[(int(a["bodyUniqueId"]), int(a["linkIndex"]))] = float(a["jointDamping"])
+        j.last_joint_damping = next(_serial)
     if a.get("maxJointVelocity") is not None:
         journal(cid).max_velocity[int(a["bodyUniqueId"])] = float(a["maxJointVelocity"])
     given = {k: float(a[name]) for k, name in enumerate(("linearDamping", "angularDamping"))
