@@ -19,12 +19,19 @@ state at the end of the step decides:
   ``penetration`` on Bullet's own path (a pair already touching: by a creep more than it
   began with), and ``BoxCCD`` simulates the rest of the step from there, so that
   pybullet's solver sees the contact as it begins. Every free body goes where its path
-  has it at that time, with the velocity it had there.
+  has it at that time, with the velocity it had there. Impacts that begin while the
+  first is still shallower than a quarter of the thinner box's half extent go back with
+  it, to the latest of their times: one partial step resolves them all, each from an
+  overlap at which pybullet's position correction adds less than it can at a fine step
+  (contact ERP times the depth over the step, at most ERP times the approach speed), where
+  a crowd would otherwise spend a partial step on each.
 * A pair still pressing in after the world went back to it twice in the step, and every
   such pair once the step's partial steps are used up (``max_partial_steps``), stops on
   its own at that time instead, with its velocity there; pybullet resolves it as the
   next step begins, where a pair stopped at an impact is struck (its impulse acts whole
-  then, as for the pair a partial step begins at).
+  then, as for the pair a partial step begins at). A body stops earlier where its path
+  takes it by then more than ``depth_tolerance`` deeper into a box it was left to pybullet
+  with (a turning box's corner dipping into a face and out again by the step's end).
 * A body's velocity where the world goes back to is in proportion between its velocities
   before and after the (partial) step, as the rest of the step adds its share of the
   solve again; but whole (after the step, less the rest's gravity) for a pair that the
@@ -66,6 +73,11 @@ PRESSES = 2
 # The window (a step fraction) before a contact's touch that the reported contact is solved
 # over: short enough that one fit's allowance is far below the boxes' approach in it.
 _EVENT_WINDOW = 1e-6
+
+# Impacts that begin while an earlier one of the step overlaps by less than this fraction of
+# the thinner box's half extent are taken back to together (at that depth pybullet's box
+# contact still pushes out along the face the box came through).
+COALESCE = 0.25
 _IDENTITY = np.eye(4).reshape(-1)
 
 
@@ -96,6 +108,7 @@ class _Paths:
         self.rows = sw.rows.copy()
         self.box = sw.boxes
         self.frame = tables.box_frame[sw.boxes]
+        self.pairs = sw.pairs
         self.track = {}  # in the order of the frames' first rows (the order pybullet is given their bodies)
         for r, f in enumerate(self.frame.tolist()):
             self.track.setdefault(f, _Track([])).rows.append(r)
@@ -283,7 +296,7 @@ class Contacts:
         # action are not judged at all when the world goes back there.
         heap = [(tau, k, i, j, (0, 0), None) for k, (i, j, tau) in enumerate(sw.hits)]
         heapq.heapify(heap)
-        order = itertools.count(len(heap))  # ties in time go in the order queued
+        order = self._order = itertools.count(len(heap))  # ties in time go in the order queued
         budget = 8 * len(paths.track) + 8  # a cap on actions: each one changes a path
         while heap:
             tau_r, _, i, j, versions, info = heapq.heappop(heap)
@@ -318,7 +331,9 @@ class Contacts:
                     self._cut = self._clamp_cut(key)
                 self.acted = set(key)
                 self.struck = self.acted if self._cut or not info["initial"] else set()
-                return tau_r
+                if info["initial"]:
+                    return tau_r
+                return self._coalesce(paths, heap, i, j, tau_r, events, back)
             changed = self._act(paths, i, j, tau_r, info, user_moved)
             self._report(paths, i, j, info, bool(changed), events)
             budget -= bool(changed)
@@ -330,6 +345,51 @@ class Contacts:
                 if touch is not None:
                     self._queue(heap, order, paths, i2, j2, tau_r, touch, back)
         return 1.0
+
+    def _coalesce(self, paths, heap, i, j, tau, events, back):
+        """The impacts that begin after the one of rows (i, j) at tau, while it is still
+        shallower than COALESCE (and each one that joins, too), join it: the world goes back to
+        the latest of them, where every one has begun, and one partial step resolves them all
+        (each from an overlap of at most that depth). Returns the time to go back to."""
+        limit, passed = self._depth_time(paths, i, j, tau), []
+        while heap and heap[0][0] <= limit:
+            tau_r, _, i2, j2, versions, info = heap[0]
+            ta, tb = paths.track[paths.frame[i2]], paths.track[paths.frame[j2]]
+            if info is None:
+                if (ta.version, tb.version) != (0, 0):
+                    break
+                heapq.heappop(heap)
+                info = self._judge(paths, i2, j2, 0.0, tau_r, back)
+                if info["act_at"] > tau_r:
+                    heapq.heappush(heap, (info["act_at"], next(self._order), i2, j2, versions, info))
+                    continue
+            elif versions != (ta.version, tb.version):
+                break
+            else:
+                heapq.heappop(heap)
+            if info["action"] is None:  # pybullet's: reported if the world goes back past it
+                passed.append((tau_r, i2, j2, info))
+                continue
+            if info["action"] != "back" or info["initial"]:
+                break
+            self._report(paths, i2, j2, info, True, events)
+            key = {int(paths.frame[i2]), int(paths.frame[j2])}
+            self.acted |= key
+            self.struck |= key
+            tau = tau_r
+            limit = min(limit, self._depth_time(paths, i2, j2, tau_r))
+        for tau_r, i2, j2, info in passed:
+            if tau_r <= tau:
+                self._report(paths, i2, j2, info, False, events)
+        return tau
+
+    def _depth_time(self, paths, i, j, tau):
+        """When the boxes of rows (i, j) on their paths overlap by COALESCE of the thinner one's
+        half extent, from tau on; 1 if never."""
+        half = paths.tables.half
+        depth = COALESCE * float(min(half[paths.box[i]].min(), half[paths.box[j]].min()))
+        t = _core.paths_first_depth(_core.RowBoxPath(paths.rows[i]), _core.RowBoxPath(paths.rows[j]), tau, depth)
+        return 1.0 if math.isnan(t) else t
 
     def _first_touches(self, paths, pairs, lo):
         """The first touch (a step fraction) of each pair of rows over [lo, 1], or None."""
@@ -423,10 +483,33 @@ class Contacts:
         changed = [f for f in (fa, fb) if paths.stoppable(f)]
         whole = info["initial"] and bool(self._clamp_cut((fa, fb)))
         for f in changed:
-            paths.stop(f, tau, whole)
+            paths.stop(f, self._stop_time(paths, f, tau), whole)
         if not info["initial"]:  # an impact: pybullet's solver meets it as the next step begins
             self.struck.update(changed)
         return changed
+
+    def _stop_time(self, paths, f, tau):
+        """When frame f stops for a contact at tau: then, unless its path takes it by then more
+        than depth_tolerance deeper into another box than it was when their paths last
+        changed (a turning box's corner dips into a face it rests on and comes out again by
+        the step's end, which pybullet resolves; stopped on the way, it would stay in): then
+        the first time it is that deep."""
+        rows = paths.track[f].rows
+        for r, r2 in paths.pairs[np.isin(paths.pairs, rows).any(axis=1)].tolist():
+            if r not in rows:
+                r, r2 = r2, r
+            if paths.frame[r2] == f:
+                continue
+            lo = max(paths.track[f].since, paths.track[paths.frame[r2]].since)
+            if lo >= tau:
+                continue
+            a, b = _core.RowBoxPath(paths.rows[r]), _core.RowBoxPath(paths.rows[r2])
+            allowed = max(_core.paths_depth(a, b, lo), 0.0) + self.depth_tolerance
+            if _core.paths_depth(a, b, tau) > allowed:
+                t = _core.paths_first_depth(a, b, lo, allowed)
+                if not math.isnan(t):
+                    tau = min(tau, t)
+        return tau
 
     def _clamp_cut(self, pair):
         """The frames of a pair pressing in while touching whose velocities stay whole where it
