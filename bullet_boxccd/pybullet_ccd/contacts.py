@@ -296,7 +296,7 @@ class Contacts:
         # action are not judged at all when the world goes back there.
         heap = [(tau, k, i, j, (0, 0), None) for k, (i, j, tau) in enumerate(sw.hits)]
         heapq.heapify(heap)
-        order = self._order = itertools.count(len(heap))  # ties in time go in the order queued
+        order = itertools.count(len(heap))  # ties in time go in the order queued
         budget = 8 * len(paths.track) + 8  # a cap on actions: each one changes a path
         while heap:
             tau_r, _, i, j, versions, info = heapq.heappop(heap)
@@ -333,7 +333,7 @@ class Contacts:
                 self.struck = self.acted if self._cut or not info["initial"] else set()
                 if info["initial"]:
                     return tau_r
-                return self._coalesce(paths, heap, i, j, tau_r, events, back)
+                return self._coalesce(paths, heap, order, i, j, tau_r, events, back)
             changed = self._act(paths, i, j, tau_r, info, user_moved)
             self._report(paths, i, j, info, bool(changed), events)
             budget -= bool(changed)
@@ -346,7 +346,7 @@ class Contacts:
                     self._queue(heap, order, paths, i2, j2, tau_r, touch, back)
         return 1.0
 
-    def _coalesce(self, paths, heap, i, j, tau, events, back):
+    def _coalesce(self, paths, heap, order, i, j, tau, events, back):
         """The impacts that begin after the one of rows (i, j) at tau, while it is still
         shallower than COALESCE (and each one that joins, too), join it: the world goes back to
         the latest of them, where every one has begun, and one partial step resolves them all
@@ -361,7 +361,7 @@ class Contacts:
                 heapq.heappop(heap)
                 info = self._judge(paths, i2, j2, 0.0, tau_r, back)
                 if info["act_at"] > tau_r:
-                    heapq.heappush(heap, (info["act_at"], next(self._order), i2, j2, versions, info))
+                    heapq.heappush(heap, (info["act_at"], next(order), i2, j2, versions, info))
                     continue
             elif versions != (ta.version, tb.version):
                 break
