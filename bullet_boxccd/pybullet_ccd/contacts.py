@@ -351,6 +351,8 @@ class Contacts:
         shallower than COALESCE (and each one that joins, too), join it: the world goes back to
         the latest of them, where every one has begun, and one partial step resolves them all
         (each from an overlap of at most that depth). Returns the time to go back to."""
+        if not heap:
+            return tau
         limit, passed = self._depth_time(paths, i, j, tau), []
         while heap and heap[0][0] <= limit:
             tau_r, _, i2, j2, versions, info = heap[0]
