@@ -56,9 +56,10 @@ counters (swept boxes, candidate pairs, solver rows, contacts, rewinds, partial 
 over the trials.
 
 First, small worlds (what a reinforcement-learning world steps millions of times):
-1 and 10 resting cubes on the ground (settled), and one cube sliding at 10 m/s on it
-(a fresh world per repeat, 100 steps timed: it is swept at every one of them). Per
-repeat, plain ``stepSimulation``, the N ``getBaseVelocity`` reads alone, and
+1 and 10 resting cubes on the ground (settled), the 10 stepped in 4 substeps (BoxCCD takes
+them itself and reads the velocities at each: its reads are 4 N), and one cube sliding at
+10 m/s on it (a fresh world per repeat, 100 steps timed: it is swept at every one of
+them). Per repeat, plain ``stepSimulation``, the N ``getBaseVelocity`` reads alone, and
 ``BoxCCD.step()`` are timed in turn (this process's CPU time, mean over a block of
 steps; the min over repeats, as the machine may carry other load); printed: the plugin's overhead over
 plain as a multiple of the reads (target at most 2) and, for the slider, the
@@ -166,11 +167,12 @@ def close_worlds(worlds):
 
 
 # ------------------------------------------------------------ small worlds
-def _small_world(n, slide):
-    """n settled 0.1 m cubes on a box ground (the first sliding at 10 m/s if slide)."""
+def _small_world(n, slide, substeps=0):
+    """n settled 0.1 m cubes on a box ground (the first sliding at 10 m/s if slide), stepped
+    in ``substeps`` substeps."""
     cid = p.connect(p.DIRECT)
     p.setGravity(0, 0, -G, physicsClientId=cid)
-    p.setTimeStep(DT, physicsClientId=cid)
+    p.setPhysicsEngineParameter(fixedTimeStep=DT, numSubSteps=substeps, physicsClientId=cid)
     def box(half, pos, mass):
         col = p.createCollisionShape(p.GEOM_BOX, halfExtents=half, physicsClientId=cid)
         return p.createMultiBody(mass, col, basePosition=pos, physicsClientId=cid)
@@ -192,16 +194,20 @@ def _per_call(fn, calls):
     return 1e6 * (time.process_time() - t0) / calls
 
 
-def _resting_row(n, repeats):
-    cid, cubes = _small_world(n, False)
+def _resting_row(n, repeats, substeps=0):
+    """n resting cubes; with substeps, BoxCCD reads them at each substep it takes: its reads are
+    the substeps' N reads each."""
+    cid, cubes = _small_world(n, False, substeps)
     ccd = BoxCCD(cid)
     times = {"plain": [], "reads": [], "plugin": []}
+    reads = cubes * max(substeps, 1)
     for _ in range(repeats):  # in turn: a burst of load hits all three alike
         times["plain"].append(_per_call(lambda: p.stepSimulation(physicsClientId=cid), 1000))
-        times["reads"].append(_per_call(lambda: [p.getBaseVelocity(b, physicsClientId=cid) for b in cubes], 1000))
+        times["reads"].append(_per_call(lambda: [p.getBaseVelocity(b, physicsClientId=cid) for b in reads], 1000))
         times["plugin"].append(_per_call(ccd.step, 1000))
     best = {k: min(v) for k, v in times.items()}
-    row = dict(world=f"{n} resting", plain_us=best["plain"], reads_us=best["reads"], plugin_us=best["plugin"],
+    world = f"{n} resting" + (f", {substeps} substeps" if substeps else "")
+    row = dict(world=world, plain_us=best["plain"], reads_us=best["reads"], plugin_us=best["plugin"],
                swept=ccd.stats.swept_boxes, steps=ccd.stats.steps)
     p.disconnect(cid)
     return row
@@ -228,8 +234,8 @@ def _slider_row(repeats):
 
 
 def small_worlds(repeats, csv_path):
-    """The small-world rows: resting 1 and 10, one slider."""
-    rows = [_resting_row(1, repeats), _resting_row(10, repeats), _slider_row(repeats)]
+    """The small-world rows: resting 1 and 10 (and 10 in 4 substeps), one slider."""
+    rows = [_resting_row(1, repeats), _resting_row(10, repeats), _resting_row(10, repeats, 4), _slider_row(repeats)]
     table = []
     for r in rows:
         r["overhead_in_reads"] = (r["plugin_us"] - r["plain_us"]) / r["reads_us"]

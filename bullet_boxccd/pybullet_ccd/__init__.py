@@ -276,44 +276,49 @@ class BoxCCD:
             self._warned -= {k for k in self._warned if len(k) > 1 and type(k[1]) is int and k[1] in renewed}
 
     def _step_once(self) -> list:
-        cid = self.cid
         struck, self._struck_next = self._struck_next, set()
-        if self._quiet and last_serial() == self._epoch and raw.getNumBodies(physicsClientId=cid) == self.world.count:
-            # Nothing changed in the world since the last step: step, read the velocities
-            # (the one read per body pybullet's API forces), and stop there if nothing is fast.
+        if (self._quiet and last_serial() == self._epoch
+                and raw.getNumBodies(physicsClientId=self.cid) == self.world.count):
+            # Nothing changed in the world since the last step.
             self.stats.steps += 1
             if not self._watched:
                 return self._pybullet_alone()
-            st = self._state
-            st.begin(self._known)
-            raw.stepSimulation(physicsClientId=cid)
-            self._known = True
-            fast = st.fast(self._dt, read=True) if st.moving else None
-            if fast is None and (not self._chains.watched or self._chains.idle(self._dt, st, self._unswept)):
-                if self._clamp_candidates or self._chains.clamp_seen:
-                    self._name_clamped()
-                return []
-            sw = None
-            if not self._chains.bodies:
-                # Free boxes only, and nothing the user moved: the sweep is all there is to
-                # the step unless it finds a contact.
-                st.begin_kinematic((), ())
-                sw = sweep(cid, self.world.tables, st, self._dt, self.fit_tolerance, self.tolerances,
-                           self.penetration, self.stats, time.perf_counter(), fast, self._clamp_candidates,
-                           self._near_unswept if self._unswept else None)
-                if sw is None:
-                    self._name_clamped()
-                    return []
-            events = self._step(self._dt, 0.0, self._dt, struck, stepped=True, fast=fast, sw=sw)
+            events = self._quiet_step(self._dt, 0.0, self._dt, struck) if self._substeps == 1 else \
+                self._substepped(struck, self._quiet_step)
         else:
             events = self._full_step(struck)
             self.stats.steps += 1
         # A world where no moving box can meet another is stepped by pybullet alone (its own
-        # substeps too); one with substeps or a kinematic velocity otherwise takes the full path.
-        self._quiet = (not self._state.with_velocity and (self._substeps == 1 or not self._watched) and self._timed()
-                       and not self._alone)
+        # substeps too); one with a kinematic velocity otherwise takes the full path.
+        self._quiet = not self._state.with_velocity and self._timed() and not self._alone
         self._epoch = last_serial()
         return events
+
+    def _quiet_step(self, h, offset, dt, struck):
+        """A (sub)step of h seconds (``offset`` into the user's step of dt) of a world nothing
+        changed in since the last one: step, read the velocities (the one read per body
+        pybullet's API forces), and stop there if nothing is fast."""
+        st = self._state
+        st.begin(self._known)
+        raw.stepSimulation(physicsClientId=self.cid)
+        self._known = True
+        fast = st.fast(h, read=True) if st.moving else None
+        if fast is None and (not self._chains.watched or self._chains.idle(h, st, self._unswept)):
+            if self._clamp_candidates or self._chains.clamp_seen:
+                self._name_clamped()
+            return []
+        sw = None
+        if not self._chains.bodies:
+            # Free boxes only, and nothing the user moved: the sweep is all there is to
+            # the step unless it finds a contact.
+            st.begin_kinematic((), ())
+            sw = sweep(self.cid, self.world.tables, st, h, self.fit_tolerance, self.tolerances, self.penetration,
+                       self.stats, time.perf_counter(), fast, self._clamp_candidates,
+                       self._near_unswept if self._unswept else None)
+            if sw is None:
+                self._name_clamped()
+                return []
+        return self._step(h, offset, dt, struck, stepped=True, fast=fast, sw=sw)
 
     def _full_step(self, struck):
         self._check_connected()
@@ -334,12 +339,18 @@ class BoxCCD:
                                            f"of body {damped} (and any other), which pybullet computes once a step "
                                            "from the joint velocities it starts with, is computed again for each "
                                            "substep, so its joints move slightly otherwise than in plain pybullet")
+        return self._substepped(struck, self._step)
+
+    def _substepped(self, struck, step):
+        """The user's step taken as its numSubSteps substeps, each by ``step(h, offset, dt,
+        struck)``."""
+        dt, n = self._dt, self._substeps
         events = []
         with self._substepping(dt, n):
             for k in range(n):
                 if k:  # pybullet cleared the user's forces after the last substep
                     replay_impulses(self.cid, self.world.journal.impulses)
-                events += self._step(dt / n, k * dt / n, dt, struck)
+                events += step(dt / n, k * dt / n, dt, struck)
                 struck, self._struck_next = self._struck_next, set()
         self._struck_next = struck
         return events
