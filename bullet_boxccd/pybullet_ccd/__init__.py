@@ -304,8 +304,7 @@ class BoxCCD:
         self._known = True
         fast = st.fast(h, read=True) if st.moving else None
         if fast is None and (not self._chains.watched or self._chains.idle(h, st, self._unswept)):
-            if self._clamp_candidates or self._chains.clamp_seen:
-                self._name_clamped()
+            self._name_clamped()
             return []
         sw = None
         if not self._chains.bodies:

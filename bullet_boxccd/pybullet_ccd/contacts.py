@@ -299,19 +299,14 @@ class Contacts:
         order = itertools.count(len(heap))  # ties in time go in the order queued
         budget = 8 * len(paths.track) + 8  # a cap on actions: each one changes a path
         while heap:
-            tau_r, _, i, j, versions, info = heapq.heappop(heap)
-            if back and tau_r > horizon:
+            if back and heap[0][0] > horizon:
                 break
-            ta, tb = paths.track[paths.frame[i]], paths.track[paths.frame[j]]
-            if info is None:  # a first touch of the sweep, on Bullet's paths unless one changed since
-                if (ta.version, tb.version) == (0, 0):
-                    info = self._judge(paths, i, j, 0.0, tau_r, back)
-                    if info["act_at"] > tau_r:
-                        heapq.heappush(heap, (info["act_at"], next(order), i, j, versions, info))
-                        continue
-                else:
-                    versions = (-1, -1)
-            if versions != (ta.version, tb.version):
+            ripe = self._pop_ripe(heap, order, paths, back)
+            if ripe is None:
+                continue
+            tau_r, i, j, info = ripe
+            if info is None:  # its paths changed since it was queued: swept again from the change
+                ta, tb = paths.track[paths.frame[i]], paths.track[paths.frame[j]]
                 since = max(ta.since, tb.since)
                 touch = self._first_touches(paths, [(i, j)], since)[0]
                 if touch is not None:
@@ -333,7 +328,7 @@ class Contacts:
                 self.struck = self.acted if self._cut or not info["initial"] else set()
                 if info["initial"]:
                     return tau_r
-                return self._coalesce(paths, heap, order, i, j, tau_r, events, back)
+                return self._coalesce(paths, heap, order, i, j, tau_r, events)
             changed = self._act(paths, i, j, tau_r, info, user_moved)
             self._report(paths, i, j, info, bool(changed), events)
             budget -= bool(changed)
@@ -346,7 +341,23 @@ class Contacts:
                     self._queue(heap, order, paths, i2, j2, tau_r, touch, back)
         return 1.0
 
-    def _coalesce(self, paths, heap, order, i, j, tau, events, back):
+    def _pop_ripe(self, heap, order, paths, back):
+        """Pop the earliest queued contact. A first touch of the sweep is judged now, on
+        Bullet's paths unless one changed since, and queued again at its time to act if that
+        is later (a contact's action is never before its touch): None. Else (tau, i, j,
+        info), info None where the pair's paths changed since it was queued or judged."""
+        tau_r, _, i, j, versions, info = heapq.heappop(heap)
+        ta, tb = paths.track[paths.frame[i]], paths.track[paths.frame[j]]
+        if info is None and (ta.version, tb.version) == (0, 0):
+            info = self._judge(paths, i, j, 0.0, tau_r, back)
+            if info["act_at"] > tau_r:
+                heapq.heappush(heap, (info["act_at"], next(order), i, j, versions, info))
+                return None
+        elif versions != (ta.version, tb.version):
+            info = None
+        return tau_r, i, j, info
+
+    def _coalesce(self, paths, heap, order, i, j, tau, events):
         """The impacts that begin after the one of rows (i, j) at tau, while it is still
         shallower than COALESCE (and each one that joins, too), join it: the world goes back to
         the latest of them, where every one has begun, and one partial step resolves them all
@@ -355,20 +366,12 @@ class Contacts:
             return tau
         limit, passed = self._depth_time(paths, i, j, tau), []
         while heap and heap[0][0] <= limit:
-            tau_r, _, i2, j2, versions, info = heap[0]
-            ta, tb = paths.track[paths.frame[i2]], paths.track[paths.frame[j2]]
+            ripe = self._pop_ripe(heap, order, paths, True)
+            if ripe is None:
+                continue
+            tau_r, i2, j2, info = ripe
             if info is None:
-                if (ta.version, tb.version) != (0, 0):
-                    break
-                heapq.heappop(heap)
-                info = self._judge(paths, i2, j2, 0.0, tau_r, back)
-                if info["act_at"] > tau_r:
-                    heapq.heappush(heap, (info["act_at"], next(order), i2, j2, versions, info))
-                    continue
-            elif versions != (ta.version, tb.version):
                 break
-            else:
-                heapq.heappop(heap)
             if info["action"] is None:  # pybullet's: reported if the world goes back past it
                 passed.append((tau_r, i2, j2, info))
                 continue

@@ -115,18 +115,21 @@ class FrameState:
         """Tell ``not_finite`` those of ``frames`` whose pose pybullet holds not finite now (a
         pose the user gave; one read each, kept out of ``rows``)."""
         pose = self._pose
-        broken = [f for f in frames if not all(math.isfinite(x) for part in pose[f]() for x in part)]
-        if broken:
-            self._not_finite(broken)
+        self._name_broken(frames, [[x for part in pose[f]() for x in part] for f in frames])
 
     def _read_static(self, frames):
         """Read the poses of static ``frames``; those pybullet holds not finite (the user placed
         them so) are told to ``not_finite``: nothing meets them, in pybullet or in a sweep."""
         self.read_poses(frames)
-        if frames:
-            broken = np.flatnonzero(~np.isfinite(self.rows[frames][:, POSE]).all(axis=1))
-            if len(broken):
-                self._not_finite([frames[k] for k in broken.tolist()])
+        self._name_broken(frames, self.rows[frames][:, POSE])
+
+    def _name_broken(self, frames, poses):
+        """Tell ``not_finite`` the frames whose poses (one row each) are not finite."""
+        if not frames:
+            return
+        broken = np.flatnonzero(~np.isfinite(np.asarray(poses, dtype=float)).all(axis=1))
+        if len(broken):
+            self._not_finite([frames[k] for k in broken.tolist()])
 
     def stale(self, frames):
         """Those of ``frames`` whose poses in ``rows`` are not this step's (a static frame's

@@ -355,8 +355,9 @@ class World:
                 kinds.append(fr.kind)
                 selfc.append(b in self.self_collision_bodies or b in self.journal.self_collision)
                 defaults.append(default_group_mask(fr.fixed))
-                if file_group(fr.link) is not None:
-                    fgm[(b, fr.link)] = file_group(fr.link)
+                group = file_group(fr.link)
+                if group is not None:
+                    fgm[(b, fr.link)] = group
                 for h, X in fr.boxes:
                     box_frame.append(f)
                     half.append(h)
