@@ -86,6 +86,33 @@ def test_maximal_bodies_are_found_and_swept_without_a_c_level_print(cid, name):
     assert "failed" not in out.text, out.text
 
 
+def test_a_maximal_body_is_read_in_a_client_of_its_own_after_the_user_disconnects_that_one(cid):
+    """BoxCCD's private client, disconnected by a user closing client ids, is never used
+    under its old id, which pybullet gives the user's next connection: that world is left
+    as the user made it, and a maximal box made afterwards is still read and swept."""
+    reset(cid)
+    box(cid, [0.0005, 1, 1], [0, 0, 0], mass=0.0)
+    box(cid, [0.05] * 3, [-3, 0, 0], maximal=True)
+    ccd = BoxCCD(cid)
+    ccd.step()  # reads the maximal box in a private client
+    ours = [i for i in range(64) if i != cid and p.getConnectionInfo(i)["isConnected"]]
+    for i in ours:
+        p.disconnect(physicsClientId=i)
+    theirs = p.connect(p.DIRECT)
+    try:
+        assert theirs in ours  # pybullet hands out the lowest free id
+        first_shape = p.createCollisionShape(p.GEOM_SPHERE, radius=0.1, physicsClientId=theirs)
+        cube = box(cid, [0.05] * 3, [-0.3, 0.1, 0.05], maximal=True)
+        throw(cid, cube)
+        for _ in range(40):
+            ccd.step()
+        assert x_of(cid, cube) < 0.0  # read and swept: stopped at the wall
+        assert p.getNumBodies(physicsClientId=theirs) == 0
+        assert p.createCollisionShape(p.GEOM_SPHERE, radius=0.1, physicsClientId=theirs) == first_shape + 1
+    finally:
+        p.disconnect(physicsClientId=theirs)
+
+
 def test_probes_read_a_maximal_body_made_unseen_exactly(cid):
     """A maximal body made through pybullet's original function (as before bullet_boxccd
     was imported) is read by closest-point probes: its corners match the same box made

@@ -37,6 +37,7 @@ import numpy as np
 import pybullet
 
 from ..motion import pose_matrix
+from . import _hooks
 from ._hooks import raw
 
 __all__ = ["multibody_boxes", "plane_box", "probe_boxes", "fit_rounded_box", "Shadow", "NOT_A_BOX", "SPHERE", "THIN"]
@@ -95,7 +96,8 @@ class Shadow:
 
     def __init__(self):
         self.cid = -1
-        self._shapes = {}  # (client, journal reset serial, user's shape index) -> shadow index
+        self._journal = None  # the private client's: closed once the user disconnects it by its id
+        self._shapes = {}  # (client, journal reset serials, user's shape index) -> shadow index
 
     def boxes(self, cid, journal, body):
         """{link: ``multibody_boxes``} of a maximal-coordinate body the journal saw being
@@ -103,8 +105,10 @@ class Shadow:
         recipe = journal.maximal.get(body)
         if recipe is None:
             return None
-        if self.cid < 0:
+        if self._journal is None or self._journal.closed:
+            # (a client the user disconnected may be theirs again under the same id)
             self.cid = raw.connect(pybullet.DIRECT)
+            self._journal, self._shapes = _hooks.journal(self.cid), {}
         if journal.search_paths:  # pybullet keeps one additional path: the latest
             raw.setAdditionalSearchPath(journal.search_paths[-1], physicsClientId=self.cid)
         name, named, index = recipe
@@ -141,7 +145,7 @@ class Shadow:
     def _shape(self, cid, journal, index):
         if index is None or index < 0:
             return -1
-        key = (cid, journal.reset, index)
+        key = (cid, journal.reset, self._journal.reset, index)
         if key not in self._shapes:
             name, named = journal.shapes[index]  # KeyError: made unseen
             self._shapes[key] = getattr(raw, name)(**named, physicsClientId=self.cid)
