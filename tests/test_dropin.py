@@ -489,6 +489,30 @@ def test_a_removed_body_takes_the_forces_given_to_it_along(cid, given, substeps)
     assert ends[True] == ends[False]
 
 
+@pytest.mark.parametrize("substeps", [1, 4])
+def test_forces_on_a_removed_body_are_ignored_as_by_pybullet(cid, substeps):
+    """A force or torque given to a removed body (an environment's code running on after its
+    projectile was removed): pybullet returns None and applies nothing; so do the hooked
+    calls, and the steps after are plain pybullet's."""
+    ends = {}
+    for use in (False, True):
+        reset(cid, gravity=-10.0)
+        p.setPhysicsEngineParameter(numSubSteps=substeps, physicsClientId=cid)
+        cube = box(cid, [0.05] * 3, [0, 0, 1])
+        gone = box(cid, [0.05] * 3, [1, 0, 1])
+        p.removeBody(gone, physicsClientId=cid)
+        ccd = BoxCCD(cid) if use else None
+        for k in range(3):
+            for flags in (p.WORLD_FRAME, p.LINK_FRAME):
+                assert p.applyExternalForce(gone, -1, [0, 0, 50], [0, 0, 0], flags, physicsClientId=cid) is None
+                assert p.applyExternalTorque(gone, -1, [0, 0, 5], flags, physicsClientId=cid) is None
+            p.applyExternalForce(cube, -1, [3, 0, 0], [0, 0, 1], p.WORLD_FRAME, physicsClientId=cid)
+            ccd.step() if ccd else p.stepSimulation(physicsClientId=cid)
+        ends[use] = p.getBasePositionAndOrientation(cube, physicsClientId=cid) + p.getBaseVelocity(cube, physicsClientId=cid)
+    p.setPhysicsEngineParameter(numSubSteps=0, physicsClientId=cid)
+    assert ends[True] == ends[False]
+
+
 def _flat_poses(cid, bodies):
     """The bodies' base positions and orientations, one flat list."""
     return [x for b in bodies for part in p.getBasePositionAndOrientation(b, physicsClientId=cid) for x in part]

@@ -649,7 +649,10 @@ def _apply_force(cid, a, result):
     j = journal(cid)
     b, link = int(a["objectUniqueId"]), int(a["linkIndex"])
     force, pos, flags = a["forceObj"], a["posObj"], int(a["flags"])
-    origin, basis = _frame(cid, b, link)
+    frame = _frame(cid, b, link)
+    if frame is None:  # pybullet ignored the call
+        return
+    origin, basis = frame
     f = _rotate(basis, force) if flags & pybullet.LINK_FRAME else tuple(float(x) for x in force)
     rel = _rotate(basis, pos) if flags & pybullet.LINK_FRAME else tuple(float(p) - o for p, o in zip(pos, origin))
     # pybullet applies the force at the frame's origin plus rel x force as a torque:
@@ -662,7 +665,10 @@ def _apply_torque(cid, a, result):
     j = journal(cid)
     b, link = int(a["objectUniqueId"]), int(a["linkIndex"])
     torque, flags = a["torqueObj"], int(a["flags"])
-    t = _rotate(_frame(cid, b, link)[1], torque) if flags & pybullet.LINK_FRAME else tuple(float(x) for x in torque)
+    frame = _frame(cid, b, link)
+    if frame is None:  # pybullet ignored the call
+        return
+    t = _rotate(frame[1], torque) if flags & pybullet.LINK_FRAME else tuple(float(x) for x in torque)
     j.impulses.append(("torque", (b, link, t)))
 
 
@@ -678,11 +684,17 @@ def _motor(name):
 
 
 def _frame(cid, b, link):
-    """Origin and rotation (row-major 3x3) of a body's base or link centre-of-mass frame."""
-    if link == -1:
-        pos, q = raw.getBasePositionAndOrientation(b, physicsClientId=cid)
-    else:
-        pos, q = raw.getLinkState(b, link, physicsClientId=cid)[:2]
+    """Origin and rotation (row-major 3x3) of a body's base or link centre-of-mass frame;
+    None if pybullet has no such body or link (it ignores a force or torque given there)."""
+    try:
+        if link == -1:
+            pos, q = raw.getBasePositionAndOrientation(b, physicsClientId=cid)
+        elif 0 <= link < raw.getNumJoints(b, physicsClientId=cid):
+            pos, q = raw.getLinkState(b, link, physicsClientId=cid)[:2]
+        else:
+            return None
+    except pybullet.error:
+        return None
     return pos, raw.getMatrixFromQuaternion(q)
 
 
@@ -695,8 +707,10 @@ def replay_impulses(cid: int, impulses) -> None:
     for kind, a in impulses:
         if kind == "force":
             b, link, f, torque = a
-            origin = _frame(cid, b, link)[0]
-            raw.applyExternalForce(b, link, f, origin, pybullet.WORLD_FRAME, physicsClientId=cid)
+            frame = _frame(cid, b, link)
+            if frame is None:  # removed since
+                continue
+            raw.applyExternalForce(b, link, f, frame[0], pybullet.WORLD_FRAME, physicsClientId=cid)
             raw.applyExternalTorque(b, link, torque, pybullet.WORLD_FRAME, physicsClientId=cid)
         elif kind == "torque":
             b, link, t = a
