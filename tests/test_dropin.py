@@ -502,13 +502,14 @@ def test_forces_on_a_removed_body_are_ignored_as_by_pybullet(cid, substeps):
         gone = box(cid, [0.05] * 3, [1, 0, 1])
         p.removeBody(gone, physicsClientId=cid)
         ccd = BoxCCD(cid) if use else None
-        for k in range(3):
+        for _ in range(3):
             for flags in (p.WORLD_FRAME, p.LINK_FRAME):
                 assert p.applyExternalForce(gone, -1, [0, 0, 50], [0, 0, 0], flags, physicsClientId=cid) is None
                 assert p.applyExternalTorque(gone, -1, [0, 0, 5], flags, physicsClientId=cid) is None
             p.applyExternalForce(cube, -1, [3, 0, 0], [0, 0, 1], p.WORLD_FRAME, physicsClientId=cid)
             ccd.step() if ccd else p.stepSimulation(physicsClientId=cid)
-        ends[use] = p.getBasePositionAndOrientation(cube, physicsClientId=cid) + p.getBaseVelocity(cube, physicsClientId=cid)
+        ends[use] = (p.getBasePositionAndOrientation(cube, physicsClientId=cid)
+                     + p.getBaseVelocity(cube, physicsClientId=cid))
     p.setPhysicsEngineParameter(numSubSteps=0, physicsClientId=cid)
     assert ends[True] == ends[False]
 
