@@ -44,7 +44,7 @@ from ..motion import pose_matrix
 from ..solver import DEFAULT_TOLERANCES, InvalidInputError, Tolerances
 from ._hooks import MAX_VELOCITY, last_serial, raw, replay_impulses
 from .articulated import Articulated
-from .contacts import PRESSES, Contacts
+from .contacts import Contacts
 from .events import BoxCCDWarning, CCDEvent, CCDStats, ClientDisconnectedError, not_finite_message
 from .layout import ANGULAR_VELOCITY
 from .others import Others
@@ -419,6 +419,7 @@ class BoxCCD:
         moved_static, with_velocity, user_moved = self._user_moves()
         t_start, elapsed, piece, events = time.perf_counter(), 0.0, h, []
         self._acted, self._struck, self._presses = set(), struck, {}
+        self._pressed_again, hold = False, h
         try:
             k = 0
             while True:
@@ -440,11 +441,20 @@ class BoxCCD:
                 if h - elapsed <= 1e-9 * h:
                     break
                 # The world stands at ``elapsed``: simulate the rest from there, in pieces under
-                # the turn limit. After max_partial_steps of them no contact takes the world back
-                # again, and the rest goes to the step's end in one piece (after the last piece
-                # an impact began, taken again shorter if it spun a body past the limit).
+                # the turn limit and ``hold``. After max_partial_steps of them no contact takes the
+                # world back again, and the rest goes to the step's end in one piece (after the
+                # last piece an impact began, taken again shorter if it spun a body past the limit).
                 moved_static, user_moved = [], set()
-                piece = self._piece(h - elapsed) if k < self._partial_steps else h - elapsed
+                # A link pair pressing in again after the world went back to it (a robot's landing
+                # pybullet's solver cannot hold within a coarse step) was not held over this piece:
+                # the next are half as long; after a piece in which none was, twice as long again
+                # (up to the step), as an adaptive step takes it.
+                if self._pressed_again:
+                    hold = 0.5 * piece
+                    self._pressed_again = False
+                else:
+                    hold = min(2.0 * hold, h)
+                piece = self._piece(h - elapsed, hold) if k < self._partial_steps else h - elapsed
                 self.stats.partial_steps += 1
                 self._take(piece, h)
                 t_start = time.perf_counter()
@@ -467,14 +477,15 @@ class BoxCCD:
                                       physicsClientId=self.cid)
         replay_impulses(self.cid, self.world.journal.impulses)
 
-    def _piece(self, rest):
+    def _piece(self, rest, hold):
         """The next partial step's length: the rest of the step, or an even share of it, so
         that no body of the contact the world was taken back to turns by more than
         ``max_turn`` in it (at most Bullet's clamp of pi/4 a step: above it, the turn Bullet
         integrates is slower than the spin its contact solver sees, and a spinning box
-        would press on into what it strikes)."""
+        would press on into what it strikes), and that no piece is longer than ``hold``."""
         turn, most = self._spin() * rest, self.max_turn
-        return rest / math.ceil(turn / most - 1e-9) if turn > most else rest
+        n = max(math.ceil(turn / most - 1e-9) if turn > most else 1, math.ceil(rest / hold - 1e-9))
+        return rest / n
 
     def _spin(self):
         """The fastest spin (rad/s) of the frames of the contact the world was taken back to."""
@@ -532,12 +543,8 @@ class BoxCCD:
         if back:
             # One time order: the free bodies' contacts up to the earliest articulated one
             # that needs the world back; the world then goes back to the earlier of the two.
-            # A link pair still pressing in after the world went back to it twice in this step
-            # is one pybullet's solver does not hold: its body stops there on its own.
-            again = [x for x in found if x[1] is not None and x[3] and self._presses.get((x[6], x[7]), 0) >= PRESSES]
-            if again:
-                self._chains.stop_each(again, st, h, self.stats)
-                found = [x for x in found if not any(x is y for y in again)]
+            # A link pair pressing in again after the world went back to it is one pybullet's
+            # solver did not hold over that piece: the next pieces are half as long (``_step``).
             tau_links, links_acted = self._chains.act_at(found)
             events, tau = self.contacts.resolve(sw, jw, t, st, h, user_moved, self._gravity, True, tau_links,
                                                 self._struck, self._presses)
@@ -552,6 +559,7 @@ class BoxCCD:
                     if first[3]:
                         key = (first[6], first[7])
                         self._presses[key] = self._presses.get(key, 0) + 1
+                        self._pressed_again = self._presses[key] > 1
                 self.stats.rewinds += 1
             events = self._chains.events(found, tau, tau if tau < 1.0 else None) + events
         else:
