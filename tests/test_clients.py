@@ -66,12 +66,6 @@ TRUE_WARNINGS = {
         "pdControl.py's cartpoles (default maxJointVelocity) swing their poles, driven by its PD plugin, up to "
         "pybullet's joint velocity clamp: getJointState reads exactly 100.0 rad/s for joint 1, the value pybullet "
         "cuts a faster joint to, as the warning says")],
-    "KukaBulletEnv-v0": [(
-        "(mesh) is in the reach of a fast box",
-        "the env's block (a box, body 2) spins at 20 to 30 rad/s at times, its corners moving more than a quarter "
-        "of its size a step, on tray/tray.urdf (body 4), whose shape is a triangle mesh (getCollisionShapeData: "
-        "GEOM_MESH): the block is swept, the tray is not, so BoxCCD cannot keep the block from passing through "
-        "the tray, as the warning says")],
 }
 
 

@@ -689,6 +689,32 @@ def test_a_shape_left_to_pybullet_is_named_once_a_fast_box_comes_near_it(cid):
         assert [m.split(" is in the reach")[0] for m in messages] == named, messages
 
 
+@pytest.mark.parametrize("motion, named", [("dropped", False), ("spinning", False), ("thrown", True)])
+def test_a_shape_left_to_pybullet_is_named_only_where_a_box_could_pass_through_it(cid, motion, named):
+    """A 0.1 m cube over a heightfield (a surface of no thickness): dropped from 0.3 m
+    (9 mm a step, swept as it moves more than 1 cm with its spin) or spinning in place at
+    60 rad/s (its corners move 1.5 cm a step), its centre cannot cross the surface within a
+    step: not named. Thrown down at 30 m/s (12.5 cm a step, more than its half extent):
+    named."""
+    reset(cid, gravity=-9.81)
+    ground = p.createCollisionShape(p.GEOM_HEIGHTFIELD, meshScale=[0.1, 0.1, 1], heightfieldData=[0.0] * 64 * 64,
+                                    numHeightfieldRows=64, numHeightfieldColumns=64, physicsClientId=cid)
+    p.createMultiBody(0, ground, physicsClientId=cid)
+    cube = box(cid, [0.05] * 3, [0, 0, 0.3 if motion == "dropped" else 0.06])
+    if motion == "spinning":
+        p.resetBaseVelocity(cube, [0, 0, 0], [0, 0, 60], physicsClientId=cid)
+    if motion == "thrown":
+        p.resetBasePositionAndOrientation(cube, [0, 0, 1.0], [0, 0, 0, 1], physicsClientId=cid)
+        p.resetBaseVelocity(cube, [0, 0, -30], [0, 0, 0], physicsClientId=cid)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        ccd = run(cid, True, 60)
+    messages = [str(w.message) for w in caught if issubclass(w.category, BoxCCDWarning)]
+    assert ccd.stats.swept_boxes > 0
+    assert [m.split(" is in the reach")[0] for m in messages] == (["body 0 link -1 (heightfield)"] if named else []), \
+        messages
+
+
 @pytest.mark.parametrize("case, named", [("plain", True), ("maximal", True), ("pair filter", False),
                                          ("group filter", False), ("its own", False)])
 def test_a_shape_left_to_pybullet_is_named_as_pybullet_collides_it(cid, case, named):

@@ -240,18 +240,19 @@ class Articulated:
         record, frame, partner frame, (path, partner path))]. ``near_unswept`` is told the
         shapes left to pybullet (``tables.unswept``) within a fast link box's reach."""
         t = self.tables
-        fast = []
+        fast, through = [], []  # through: (frame, bounds) of the boxes that move more than their smallest half extent
         for rec in self.watched:
             rec.fast = False  # until a fast box of it is judged against a partner
             if rec.motion is None:  # its state is not finite: pybullet's alone
                 continue
             moves = rec.motion.fast_boxes(rec.box_links, rec.box_X, rec.box_half, rec.box_reach)
             fast += [(rec, *rec.boxes[k], bounds) for k, _, bounds in moves]
+            through += [(rec.boxes[k][0], bounds) for k, move, bounds in moves if move > rec.box_half[k].min()]
         if not fast:
             return []
         stats.swept_boxes += len(fast)
-        if near_unswept is not None:
-            near = unswept_near(self.cid, t, [f for _, f, _, _ in fast], np.array([b for *_, b in fast]), 0.0)
+        if near_unswept is not None and through:  # (only those can cross a shape of no thickness)
+            near = unswept_near(self.cid, t, [f for f, _ in through], np.array([b for _, b in through]), 0.0)
             if near:
                 near_unswept(near)
         rigid = self._rigid_near(fast, state, dt)

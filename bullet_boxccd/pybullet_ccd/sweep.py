@@ -21,7 +21,7 @@ import numpy as np
 
 from .. import _core
 from ._hooks import raw
-from .layout import POSE, TWIST
+from .layout import PATH_ROW, POSE, TWIST
 from .world import FREE
 
 __all__ = ["Sweep", "sweep", "jump_sweep", "moves_into", "CREEP", "overlap_query"]
@@ -69,7 +69,8 @@ def sweep(cid, tables, state, dt, fit_tolerance, tolerances, penetration, stats,
     the kinematic frames' poses; ``fast`` what ``state.sweeper.fast`` found, if it was
     asked already). Returns a Sweep, or None if nothing touched. The fast frames are added
     to the set ``fast_seen``; ``near_unswept`` is told the shapes left to pybullet
-    (``tables.unswept``) that pybullet's broad phase finds within the fast boxes' reach."""
+    (``tables.unswept``) that pybullet's broad phase finds within the reach of the fast
+    boxes whose centres can cross them (``_centre_travel``)."""
     sweeper = state.sweeper
     if fast is None:
         fast = state.fast(dt)
@@ -83,10 +84,13 @@ def sweep(cid, tables, state, dt, fit_tolerance, tolerances, penetration, stats,
     stats.swept_boxes += len(fast)
     bounds = None  # the fast boxes' swept bounds, once asked for
     if near_unswept is not None:
-        _, bounds = sweeper.rows(dt, fast)
-        near = unswept_near(cid, tables, tables.box_frame[fast].tolist(), bounds, slack)
-        if near:
-            near_unswept(near)
+        rows, bounds = sweeper.rows(dt, fast)
+        through = np.flatnonzero(_centre_travel(rows) > rows[:, PATH_ROW["half_extents"]].min(axis=1))
+        if len(through):
+            near = unswept_near(cid, tables, tables.box_frame[np.asarray(fast)[through]].tolist(), bounds[through],
+                                slack)
+            if near:
+                near_unswept(near)
     t1 = time.perf_counter()
     stats.seconds["state"] += t1 - t0
     boxes, all_others = fast, False
@@ -120,6 +124,15 @@ def sweep(cid, tables, state, dt, fit_tolerance, tolerances, penetration, stats,
         allowed = set(map(tuple, pairs.tolist()))
         hits = [h for h in hits if h[:2] in allowed]
     return Sweep(rows, boxes, pairs, hits) if hits else None
+
+
+def _centre_travel(rows):
+    """How far each path row's box centre can get from where it starts the step (a bound: the
+    frame's displacement, and the arc of the centre's turn about the frame's origin). A
+    box whose centre moves less than its smallest half extent cannot cross even a shape of
+    no thickness (a mesh's face, a heightfield) within the step."""
+    offset = np.linalg.norm(rows[:, PATH_ROW["box_in_frame"]].reshape(-1, 4, 4)[:, :3, 3], axis=1)
+    return np.linalg.norm(rows[:, PATH_ROW["displacement"]], axis=1) + np.abs(rows[:, PATH_ROW["angle"]][:, 0]) * offset
 
 
 def unswept_near(cid, tables, frames, bounds, slack):
