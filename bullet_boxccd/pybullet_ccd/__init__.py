@@ -191,6 +191,8 @@ class BoxCCD:
             self._partial_steps = self.max_partial_steps if self.max_partial_steps is not None else \
                 min(_PARTIAL_STEPS[1], max(_PARTIAL_STEPS[0], _PARTIAL_BODY_STEPS // max(moving, 1)))
             self._unswept = {k: v for k, v in t.unswept.items() if ("unswept", *k) not in self._warned}
+            self._fast_unswept = {b: self._half_thinnest(b) for b in t.other_rigid
+                                  if (b, -1) in t.unswept and ("fast unswept", b) not in self._warned}
             self._known = False
             self.stats.tracked_boxes = len(t.half)
             small = t.half.min() if len(t.half) else math.inf
@@ -252,6 +254,8 @@ class BoxCCD:
             raise
         j = self.world.journal
         j.impulses.clear()  # pybullet cleared the user's forces
+        if self._fast_unswept and self._timed():
+            self._name_fast_unswept()
         if j.last_over > self._over_seen:  # given a velocity above the clamp, which pybullet cut as it stepped
             for b, serial in j.over_clamp.items():
                 if serial > self._over_seen:
@@ -575,6 +579,25 @@ class BoxCCD:
         self.stats.seconds["rewind"] += time.perf_counter() - t3
         self.stats.contacts += len(events)
         return sorted(events, key=lambda e: e.tau), tau
+
+    def _half_thinnest(self, b):
+        """Half the smallest extent of body b's bounding box (pybullet's, as it stands)."""
+        lo, hi = raw.getAABB(b, -1, physicsClientId=self.cid)
+        return 0.5 * min(y - x for x, y in zip(lo, hi))
+
+    def _name_fast_unswept(self):
+        """Free bodies with no box that moved farther in the (sub)step just taken than half
+        their smallest extent (far enough to cross a shape of no thickness): named once each."""
+        h = self._dt / self._substeps
+        for b, half in list(self._fast_unswept.items()):
+            v = raw.getBaseVelocity(b, physicsClientId=self.cid)[0]
+            move = math.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]) * h
+            if move > half:
+                del self._fast_unswept[b]
+                self._warn(("fast unswept", b),
+                           f"body {b} ({self.world.tables.unswept[(b, -1)]}) moves {move:.3g} m a step, more than half "
+                           f"its smallest extent ({half:.3g} m): BoxCCD sweeps boxes only, so pybullet alone meets "
+                           "its contacts and it can pass through what it meets")
 
     def _near_unswept(self, keys):
         """Shapes left to pybullet that a fast box came near: named once each."""
