@@ -238,9 +238,10 @@ class Articulated:
         """Sweep the fast link boxes. Returns their contacts in time order: [(touch, act at
         (None: pybullet's to resolve), (point, normal, feature), initial, pressing, body
         record, frame, partner frame, (path, partner path))]. ``near_unswept`` is told the
-        shapes left to pybullet (``tables.unswept``) within a fast link box's reach."""
+        shapes left to pybullet (``tables.unswept``) within the reach of a fast link box that
+        moves more than its smallest half extent (less cannot cross a shape of no thickness)."""
         t = self.tables
-        fast, through = [], []  # through: (frame, bounds) of the boxes that move more than their smallest half extent
+        fast, through = [], []  # through: (frame, bounds) of those moving more than their smallest half extent
         for rec in self.watched:
             rec.fast = False  # until a fast box of it is judged against a partner
             if rec.motion is None:  # its state is not finite: pybullet's alone
@@ -251,7 +252,7 @@ class Articulated:
         if not fast:
             return []
         stats.swept_boxes += len(fast)
-        if near_unswept is not None and through:  # (only those can cross a shape of no thickness)
+        if near_unswept is not None and through:
             near = unswept_near(self.cid, t, [f for f, _ in through], np.array([b for _, b in through]), 0.0)
             if near:
                 near_unswept(near)
