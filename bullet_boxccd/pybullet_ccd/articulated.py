@@ -70,8 +70,9 @@ class _Body:
     box_X: np.ndarray = None  # (len(boxes), 4, 4), half extents (len(boxes), 3) and sweep reach (len(boxes),)
     box_half: np.ndarray = None
     box_reach: np.ndarray = None
-    base_idle: tuple = None  # (radius, reach): the base's farthest box point, its boxes' smallest sweep reach
-    link_idle: tuple = None  # ([link], [radius], [reach]): the same for each link with boxes
+    base_idle: tuple = None  # (radius, reach, thin): the base's farthest box point, its boxes' smallest sweep
+    # reach and smallest half extent
+    link_idle: tuple = None  # ([link], [radius], [reach], [thin]): the same for each link with boxes
     fast: bool = False  # whether a fast box of it was judged against a partner in the last step
 
 
@@ -107,8 +108,9 @@ class Articulated:
             rec.box_X, rec.box_half, rec.box_reach = tables.X_CS[ids], tables.half[ids], sweep_reach[ids]
             per_link = {}
             for k, link in enumerate(rec.box_links.tolist()):
-                r, reach = per_link.get(link, (0.0, math.inf))
-                per_link[link] = (max(r, float(tables.radius[ids[k]])), min(reach, float(rec.box_reach[k])))
+                r, reach, thin = per_link.get(link, (0.0, math.inf, math.inf))
+                per_link[link] = (max(r, float(tables.radius[ids[k]])), min(reach, float(rec.box_reach[k])),
+                                  min(thin, float(rec.box_half[k].min())))
             rec.base_idle = per_link.pop(-1, None)
             rec.link_idle = (list(per_link), *zip(*per_link.values())) if per_link else None
             rec.layout = joint_layout(rec.chain)
@@ -133,38 +135,41 @@ class Articulated:
         and the farthest anything else moved): a robot swinging in free space. A body with a
         box judged against a partner in the last step is taken to move still (it is read
         whole at once). Nor is it idle near a shape in ``unswept`` (left to pybullet, not named
-        yet) of another body."""
+        yet) of another body, with a link that moves more than its boxes' smallest half extent
+        (less cannot cross a shape of no thickness: ``find`` would not name it)."""
         cid, fast, widen = self.cid, [], 0.0
         for rec in self.watched:
             if rec.fast:
                 return False
             lo, hi = [math.inf] * 3, [-math.inf] * 3
-            if rec.base_idle is not None:
-                v, w = raw.getBaseVelocity(rec.body, physicsClientId=cid)
-                r, reach = rec.base_idle
+            near = [math.inf] * 3, [-math.inf] * 3  # the bounds of links that can cross a shape
+            moving = [(-1, raw.getBaseVelocity(rec.body, physicsClientId=cid), *rec.base_idle)] \
+                if rec.base_idle is not None else []
+            if rec.link_idle:
+                states = raw.getLinkStates(rec.body, rec.link_idle[0], computeLinkVelocity=1, physicsClientId=cid)
+                moving += [(link, s[6:8], *rest)
+                           for link, s, *rest in zip(rec.link_idle[0], states, *rec.link_idle[1:])]
+            for link, (v, w), r, reach, thin in moving:
                 m = _moves(v, w, r, dt)
                 widen = max(widen, 2.0 * m)
                 if m > reach:
-                    _grow(lo, hi, raw.getAABB(rec.body, -1, physicsClientId=cid), 2.0 * m)
-            if rec.link_idle:
-                states = raw.getLinkStates(rec.body, rec.link_idle[0], computeLinkVelocity=1, physicsClientId=cid)
-                for link, s, r, reach in zip(rec.link_idle[0], states, rec.link_idle[1], rec.link_idle[2]):
-                    m = _moves(s[6], s[7], r, dt)
-                    widen = max(widen, 2.0 * m)
-                    if m > reach:
-                        _grow(lo, hi, raw.getAABB(rec.body, link, physicsClientId=cid), 2.0 * m)
+                    aabb = raw.getAABB(rec.body, link, physicsClientId=cid)
+                    _grow(lo, hi, aabb, 2.0 * m)
+                    if m > thin:
+                        _grow(*near, aabb, 2.0 * m)
             if lo[0] <= hi[0]:
-                fast.append((rec, lo + hi))
+                fast.append((rec, lo + hi, near[0] + near[1] if near[0][0] <= near[1][0] else None))
         if fast:
             widen = max(widen, state.sweeper.slack(dt))
             t = self.tables
-            for rec, box in fast:
+            for rec, box, crossing in fast:
                 for key in overlap_query(cid, box, widen):
                     g = t.index.get(key)
                     if g is not None and (int(t.body[g]) != rec.body or rec.ancestors is not None):
                         return False
-                    if key in unswept and key[0] != rec.body:
-                        return False
+                if crossing is not None and unswept and any(
+                        key in unswept and key[0] != rec.body for key in overlap_query(cid, crossing, widen)):
+                    return False
         for rec in self.bodies.values():
             rec.base_state = None  # not read this step: the next step's start is not known
         return True
