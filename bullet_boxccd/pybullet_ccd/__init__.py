@@ -590,8 +590,7 @@ class BoxCCD:
         their smallest extent (far enough to cross a shape of no thickness): named once each."""
         h = self._dt / self._substeps
         for b, half in list(self._fast_unswept.items()):
-            v = raw.getBaseVelocity(b, physicsClientId=self.cid)[0]
-            move = math.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]) * h
+            move = math.hypot(*raw.getBaseVelocity(b, physicsClientId=self.cid)[0]) * h
             if move > half:
                 del self._fast_unswept[b]
                 self._warn(("fast unswept", b),

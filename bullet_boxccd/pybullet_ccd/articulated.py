@@ -70,8 +70,8 @@ class _Body:
     box_X: np.ndarray = None  # (len(boxes), 4, 4), half extents (len(boxes), 3) and sweep reach (len(boxes),)
     box_half: np.ndarray = None
     box_reach: np.ndarray = None
-    base_idle: tuple = None  # (radius, reach, thin): the base's farthest box point, its boxes' smallest sweep
-    # reach and smallest half extent
+    # (radius, reach, thin): the base's farthest box point, its boxes' smallest sweep reach and half extent
+    base_idle: tuple = None
     link_idle: tuple = None  # ([link], [radius], [reach], [thin]): the same for each link with boxes
     fast: bool = False  # whether a fast box of it was judged against a partner in the last step
 
