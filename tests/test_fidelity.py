@@ -118,14 +118,12 @@ def test_boxccd_ends_like_the_converged_reference(cid, refs, case):
     assert not through
     assert np.linalg.norm(v) <= 2.0 * max(np.linalg.norm(v_plain), np.linalg.norm(v_ref)) + 2.0
     assert deepest <= max(2.0 * deep_ref, 0.01), f"step-end penetration {deepest:.4f} m"
-    # The converged engine's answer is a range: its rebound depends on where in its step the
-    # touch falls (its position correction adds up to about 7 % of the impact speed), at every
-    # step size. BoxCCD's is checked against that range (its phases' velocities, component
-    # by component), not one point of it.
-    lo, hi = v_phases.min(axis=0), v_phases.max(axis=0)
-    err = np.linalg.norm(v - np.clip(v, lo, hi)) / speed
-    assert err <= tol, (f"{err:.3f} of the speed from the converged range (v = {np.round(v, 2)}, phase mean "
-                        f"{np.round(v_ref, 2)}, vx from {lo[0]:.2f} to {hi[0]:.2f})")
+    # The converged engine's rebound depends on where in its step the touch falls (its
+    # position correction adds up to about 8 % of the impact speed), at every step size; its
+    # phase mean is the answer BoxCCD is held to.
+    err = np.linalg.norm(v - v_ref) / speed
+    assert err <= tol, (f"{err:.3f} of the speed from the converged phase mean (v = {np.round(v, 2)}, phase mean "
+                        f"{np.round(v_ref, 2)}, vx from {v_phases[:, 0].min():.2f} to {v_phases[:, 0].max():.2f})")
 
 
 # ------------------------------------------------------------ glancing impacts

@@ -218,9 +218,11 @@ class Contacts:
         {pair of frames: times the world went back to it pressing in this step}. The frames
         of the contact the world goes back to are left in ``self.acted`` (and in ``self.struck``
         if it is an impact: met inside the step); without ``back``, the frames stopped at an
-        impact are left in ``self.struck``."""
+        impact are left in ``self.struck``. Either way the pairs of frames of those impacts,
+        which pybullet's solver meets as the next (partial) step begins, are left in
+        ``self.impacts``."""
         kinematic = set(state.kinematic)
-        events, self.struck, self.acted, self._cut = [], set(), set(), set()
+        events, self.struck, self.acted, self._cut, self.impacts = [], set(), set(), set(), []
         self._presses = {} if presses is None else presses
         pushed = self._jumps(jw, tables, state, dt, kinematic, user_moved, events) if jw is not None else {}
         paths = _Paths(sw, tables, state, dt, kinematic, struck, gravity) if sw is not None and sw.hits else None
@@ -328,6 +330,7 @@ class Contacts:
                 self.struck = self.acted if self._cut or not info["initial"] else set()
                 if info["initial"]:
                     return tau_r
+                self.impacts = [key]
                 return self._coalesce(paths, heap, order, i, j, tau_r, events)
             changed = self._act(paths, i, j, tau_r, info, user_moved)
             self._report(paths, i, j, info, bool(changed), events)
@@ -378,9 +381,10 @@ class Contacts:
             if info["action"] != "back" or info["initial"]:
                 break
             self._report(paths, i2, j2, info, True, events)
-            key = {int(paths.frame[i2]), int(paths.frame[j2])}
-            self.acted |= key
-            self.struck |= key
+            key = (int(paths.frame[i2]), int(paths.frame[j2]))
+            self.acted.update(key)
+            self.struck.update(key)
+            self.impacts.append(key)
             tau = tau_r
             limit = min(limit, self._depth_time(paths, i2, j2, tau_r))
         for tau_r, i2, j2, info in passed:
@@ -491,6 +495,7 @@ class Contacts:
             paths.stop(f, self._stop_time(paths, f, tau), whole)
         if not info["initial"]:  # an impact: pybullet's solver meets it as the next step begins
             self.struck.update(changed)
+            self.impacts.append((int(fa), int(fb)))
         return changed
 
     def _stop_time(self, paths, f, tau):
