@@ -157,9 +157,6 @@ class BoxCCD:
         # and those of them struck by an impact then (its impulse acts whole at that start);
         # the frames a step stopped at an impact, struck as the next step begins.
         self._acted, self._struck, self._struck_next = set(), set(), set()
-        # The (body, link) pairs of the impacts of those contacts, which the next stepSimulation
-        # resolves with their restitution raised (``_simulate``).
-        self._impacts = []
         self._clamp_candidates = set()  # frames swept as fast, or read at the velocity clamp, in the current (sub)step
         self._damped = (None, None)  # (when read, a body with a damped joint)
         self._sync()
@@ -175,7 +172,6 @@ class BoxCCD:
         if j.reset > self._reset_seen:  # resetSimulation: a new world, of which nothing was said yet
             self._warned.clear()
             self._reset_seen = j.reset
-            self._impacts = []
             self._alone = False
         if self.world.sync():
             self.stats.rediscoveries += 1
@@ -308,7 +304,7 @@ class BoxCCD:
         pybullet's API forces), and stop there if nothing is fast."""
         st = self._state
         st.begin(self._known)
-        self._simulate()
+        raw.stepSimulation(physicsClientId=self.cid)
         self._known = True
         fast = st.fast(h, read=True) if st.moving else None
         if fast is None and (not self._chains.watched or self._chains.idle(h, st, self._unswept)):
@@ -403,7 +399,7 @@ class BoxCCD:
 
     def _pybullet_alone(self):
         """A step of pybullet alone (its own substeps too): no box that moves can meet another."""
-        self._simulate()
+        raw.stepSimulation(physicsClientId=self.cid)
         self._known, self._moves_seen = False, self.world.journal.last_move
         return []
 
@@ -427,7 +423,7 @@ class BoxCCD:
         moved_static, with_velocity, user_moved = self._user_moves()
         t_start, elapsed, piece, events = time.perf_counter(), 0.0, h, []
         self._acted, self._struck, self._presses = set(), struck, {}
-        self._pressed_again, hold = False, h
+        self._pressed_again, hold, impacts = False, h, []
         try:
             k = 0
             while True:
@@ -435,7 +431,7 @@ class BoxCCD:
                     self._state.begin_kinematic(moved_static, with_velocity)
                 if not stepped:
                     self._state.begin(self._known)
-                    impacts = self._simulate()
+                    self._simulate(impacts)
                     self._state.read_velocities()
                     if 0 < k <= self._partial_steps:  # (not the very last piece: see below)
                         piece = self._within_clamp(piece, h, impacts)
@@ -444,6 +440,7 @@ class BoxCCD:
                 back = k < self._partial_steps
                 found, tau = self._sweep(piece, t_sim, user_moved, back, stepped, fast, sw)
                 stepped, fast, sw = False, None, None
+                impacts = self.contacts.impacts if back and tau < 1.0 else []  # (the world went back to them)
                 events += [_shifted(e, offset + elapsed, dt) for e in found]
                 elapsed += tau * piece
                 if h - elapsed <= 1e-9 * h:
@@ -475,36 +472,29 @@ class BoxCCD:
         self._name_clamped()
         return events
 
-    def _impacts_of(self, pairs):
-        """Keep the impacts (pairs of frames) for the next stepSimulation to resolve."""
-        keys = self.world.tables.keys
-        self._impacts = [(keys[fa], keys[fb]) for fa, fb in pairs]
-
-    def _simulate(self):
-        """``stepSimulation``, resolving the impacts kept for it (``_impacts``) as pybullet's
-        converged physics does; returns them. At a step of h, pybullet's solver adds to a
-        contact's rebound its position correction, contact ERP x the overlap it first sees
-        the contact at / h; at a fine step a touch falls at a uniform phase of the step, so
-        the overlap is phase x approach speed x h, and the converged engine's rebound is its
-        restitution plus ERP x phase of the approach speed: ERP / 2 more on average (4 % of
-        the approach speed with the default ERP of 0.08, whatever the step). BoxCCD takes the
-        world back to an impact's touch, where that overlap is nil, so for the solve that
-        meets it the pair's combined restitution (the product of its bodies') is raised by
-        ERP / 2: each body's set to sqrt(e_a e_b + ERP / 2), then put back."""
-        impacts, self._impacts = self._impacts, []
+    def _simulate(self, impacts):
+        """``stepSimulation``, resolving ``impacts`` (pairs of frames met inside the step,
+        which the world was just taken back to) as pybullet's converged physics does. At a
+        step of h, pybullet's solver adds to a contact's rebound its position correction,
+        contact ERP x the overlap it first sees the contact at / h; at a fine step a touch
+        falls at a uniform phase of the step, so the overlap is phase x approach speed x h,
+        and the converged engine's rebound is its restitution plus ERP x phase of the
+        approach speed: ERP / 2 more on average (4 % of the approach speed with the default
+        ERP of 0.08, whatever the step). The world went back to the touch, where that
+        overlap is nil, so for this solve the pair's combined restitution (the product of
+        its bodies') is raised by ERP / 2: each body's set to sqrt(e_a e_b + ERP / 2), then
+        put back."""
         lift = 0.5 * self.world.journal.contact_erp
         if not impacts or lift <= 0.0:
             raw.stepSimulation(physicsClientId=self.cid)
-            return impacts
-        cid, own, raised = self.cid, {}, {}
-        try:
-            for pair in impacts:
-                for b, link in pair:
-                    if (b, link) not in own:
-                        own[b, link] = raw.getDynamicsInfo(b, link, physicsClientId=cid)[5]
-        except pybullet.error:  # a body the user removed since
-            own, impacts = {}, []
-        for a, b in impacts:
+            return
+        cid, keys, own, raised = self.cid, self.world.tables.keys, {}, {}
+        for pair in impacts:
+            for f in pair:
+                if keys[f] not in own:
+                    own[keys[f]] = raw.getDynamicsInfo(*keys[f], physicsClientId=cid)[5]
+        for fa, fb in impacts:
+            a, b = keys[fa], keys[fb]
             e = math.sqrt(own[a] * own[b] + lift)
             raised[a], raised[b] = max(raised.get(a, 0.0), e), max(raised.get(b, 0.0), e)
         for (b, link), e in raised.items():
@@ -514,7 +504,6 @@ class BoxCCD:
         finally:
             for (b, link), e in own.items():
                 raw.changeDynamics(b, link, restitution=e, physicsClientId=cid)
-        return impacts
 
     def _take(self, piece, h):
         """Set the world to take a partial step of ``piece`` seconds of the user's step of h:
@@ -561,8 +550,7 @@ class BoxCCD:
         piece /= math.ceil(spin * piece / self.max_turn)
         self._take(piece, h)
         st.begin(True)
-        self._impacts = impacts
-        self._simulate()
+        self._simulate(impacts)
         st.fresh = set()  # the poses read or placed before this step are not its end
         st.read_velocities()
         self.stats.partial_steps += 1
@@ -601,7 +589,6 @@ class BoxCCD:
             if tau < 1.0:
                 self._chains.stop_all(tau, st, self._struck)
                 self._others.back(h, tau, self._gravity)
-                self._impacts_of(self.contacts.impacts)
                 if self.contacts.acted:
                     self._acted, self._struck = self.contacts.acted, self.contacts.struck
                 else:
@@ -622,7 +609,6 @@ class BoxCCD:
             more, tau = self.contacts.resolve(_without(sw, pushed, t), jw, t, st, h, user_moved, self._gravity,
                                               False, struck=self._struck)
             self._struck_next = self.contacts.struck
-            self._impacts_of(self.contacts.impacts)
             events += more
         self.stats.seconds["rewind"] += time.perf_counter() - t3
         self.stats.contacts += len(events)

@@ -218,9 +218,8 @@ class Contacts:
         {pair of frames: times the world went back to it pressing in this step}. The frames
         of the contact the world goes back to are left in ``self.acted`` (and in ``self.struck``
         if it is an impact: met inside the step); without ``back``, the frames stopped at an
-        impact are left in ``self.struck``. Either way the pairs of frames of those impacts,
-        which pybullet's solver meets as the next (partial) step begins, are left in
-        ``self.impacts``."""
+        impact are left in ``self.struck``. With ``back``, the pairs of frames of the impacts
+        the world goes back to are left in ``self.impacts``."""
         kinematic = set(state.kinematic)
         events, self.struck, self.acted, self._cut, self.impacts = [], set(), set(), set(), []
         self._presses = {} if presses is None else presses
@@ -495,7 +494,6 @@ class Contacts:
             paths.stop(f, self._stop_time(paths, f, tau), whole)
         if not info["initial"]:  # an impact: pybullet's solver meets it as the next step begins
             self.struck.update(changed)
-            self.impacts.append((int(fa), int(fb)))
         return changed
 
     def _stop_time(self, paths, f, tau):
