@@ -183,9 +183,8 @@ def test_impacts_close_in_time_are_taken_back_to_together(cid, gap):
     touches, under a quarter of the wall's half thickness): the world goes back once, to the
     second touch, and each cube rebounds within the range of the converged engine's answers
     (plain pybullet at DT/256 over 8 offsets of its step grid: its position correction adds
-    up to about 7 % of the speed, by the phase at which the touch falls; within 1 % of the
-    speed: BoxCCD resolves an impact from its touch, the low end of that range). 0.05 of a
-    step apart (2 cm): the world goes back to each."""
+    up to 8 % of the speed, by the phase at which the touch falls), give or take 1 % of the
+    speed. 0.05 of a step apart (2 cm): the world goes back to each."""
     speeds, ccd = pair_strike(cid, gap, True)
     assert ccd.stats.rewinds == (1 if gap < 0.01 else 2), ccd.stats.rewinds
     ref = np.array([pair_strike(cid, gap, False, 256, k / 8)[0] for k in range(8)])
