@@ -483,12 +483,15 @@ class BoxCCD:
         ERP of 0.08, whatever the step). The world went back to the touch, where that
         overlap is nil, so for this solve the pair's combined restitution (the product of
         its bodies') is raised by ERP / 2: each body's set to sqrt(e_a e_b + ERP / 2), then
-        put back."""
+        put back. Not for a pair with a maximal-coordinate body, whose restitution
+        getDynamicsInfo does not report (what it returns is not the body's)."""
         lift = 0.5 * self.world.journal.contact_erp
+        cid, keys, maximal = self.cid, self.world.tables.keys, self.world.maximal
+        impacts = [(fa, fb) for fa, fb in impacts if not maximal(keys[fa][0]) and not maximal(keys[fb][0])]
         if not impacts or lift <= 0.0:
-            raw.stepSimulation(physicsClientId=self.cid)
+            raw.stepSimulation(physicsClientId=cid)
             return
-        cid, keys, own, raised = self.cid, self.world.tables.keys, {}, {}
+        own, raised = {}, {}
         for pair in impacts:
             for f in pair:
                 if keys[f] not in own:
