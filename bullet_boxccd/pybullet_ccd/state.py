@@ -160,15 +160,17 @@ class FrameState:
         self.read_twists(frames)
         starts = _core.frame_poses(self.rows, dt, np.array(frames, dtype=np.int64), np.zeros(len(frames)))
         t = self.tables
-        for f, p1 in zip(frames, starts):
-            e0 = self.pose0[f]
-            a, b = p1[3:], e0[3:]
-            turn = b[3] * a[:3] - a[3] * b[:3] - np.cross(a[:3], b[:3])  # sin(angle / 2) axis of q1 q0^-1
-            shift, sin_half = np.linalg.norm(p1[:3] - e0[:3]), min(float(np.linalg.norm(turn)), 1.0)
-            if shift <= _JUMP * (1.0 + np.abs(e0[:3]).max()) and sin_half <= _JUMP:
+        for f, p1, pose1 in zip(frames, starts.tolist(), starts):
+            e0 = self.pose0[f].tolist()
+            (ax, ay, az, aw), (bx, by, bz, bw) = p1[3:], e0[3:]
+            # sin(angle / 2) axis of q1 q0^-1: bw a - aw b - a x b
+            turn = (bw * ax - aw * bx - (ay * bz - az * by), bw * ay - aw * by - (az * bx - ax * bz),
+                    bw * az - aw * bz - (ax * by - ay * bx))
+            shift, sin_half = math.dist(p1[:3], e0[:3]), min(math.hypot(*turn), 1.0)
+            if shift <= _JUMP * (1.0 + max(map(abs, e0[:3]))) and sin_half <= _JUMP:
                 continue
             # A jump no box of the frame moves farther in than a free box may move unswept in a
             # step is pybullet's, as such a free box's step is.
             boxes = t.frame_boxes[f]
             if np.any(shift + 2.0 * math.asin(sin_half) * t.radius[boxes] > self._reach[boxes]):
-                self.jumps[f] = (e0, p1)
+                self.jumps[f] = (self.pose0[f], pose1)
