@@ -127,9 +127,10 @@ class FrameState:
         """Tell ``not_finite`` the frames whose poses (one row each) are not finite."""
         if not frames:
             return
-        broken = np.flatnonzero(~np.isfinite(np.asarray(poses, dtype=float)).all(axis=1))
-        if len(broken):
-            self._not_finite([frames[k] for k in broken.tolist()])
+        rows = poses.tolist() if isinstance(poses, np.ndarray) else poses
+        broken = [f for f, row in zip(frames, rows) if not all(map(math.isfinite, row))]
+        if broken:
+            self._not_finite(broken)
 
     def stale(self, frames):
         """Those of ``frames`` whose poses in ``rows`` are not this step's (a static frame's
