@@ -483,30 +483,31 @@ class BoxCCD:
         ERP of 0.08, whatever the step). The world went back to the touch, where that
         overlap is nil, so for this solve the pair's combined restitution (the product of
         its bodies') is raised by ERP / 2: each body's set to sqrt(e_a e_b + ERP / 2), then
-        put back. Not for a pair with a maximal-coordinate body, whose restitution
-        getDynamicsInfo does not report (what it returns is not the body's)."""
+        put back. A body has one restitution for all its contacts: one whose pairs want
+        different values (a wall struck at once by boxes of different restitutions) keeps
+        its own, and so do its partners in them. Not for a pair with a maximal-coordinate
+        body either, whose restitution getDynamicsInfo does not report (what it returns is
+        not the body's). Such impacts are resolved from the touch."""
         lift = 0.5 * self.world.journal.contact_erp
         cid, keys, maximal = self.cid, self.world.tables.keys, self.world.maximal
-        impacts = [(fa, fb) for fa, fb in impacts if not maximal(keys[fa][0]) and not maximal(keys[fb][0])]
-        if not impacts or lift <= 0.0:
+        pairs = [(keys[fa], keys[fb]) for fa, fb in impacts if not maximal(keys[fa][0]) and not maximal(keys[fb][0])]
+        if not pairs or lift <= 0.0:
             raw.stepSimulation(physicsClientId=cid)
             return
-        own, raised = {}, {}
-        for pair in impacts:
-            for f in pair:
-                if keys[f] not in own:
-                    own[keys[f]] = raw.getDynamicsInfo(*keys[f], physicsClientId=cid)[5]
-        for fa, fb in impacts:
-            a, b = keys[fa], keys[fb]
+        own = {k: raw.getDynamicsInfo(*k, physicsClientId=cid)[5] for k in {k for pair in pairs for k in pair}}
+        want = {k: set() for k in own}
+        for a, b in pairs:
             e = math.sqrt(own[a] * own[b] + lift)
-            raised[a], raised[b] = max(raised.get(a, 0.0), e), max(raised.get(b, 0.0), e)
-        for (b, link), e in raised.items():
-            raw.changeDynamics(b, link, restitution=e, physicsClientId=cid)
+            want[a].add(e)
+            want[b].add(e)
+        raised = {k: next(iter(want[k])) for pair in pairs if all(len(want[k]) == 1 for k in pair) for k in pair}
         try:
+            for (b, link), e in raised.items():
+                raw.changeDynamics(b, link, restitution=e, physicsClientId=cid)
             raw.stepSimulation(physicsClientId=cid)
         finally:
-            for (b, link), e in own.items():
-                raw.changeDynamics(b, link, restitution=e, physicsClientId=cid)
+            for b, link in raised:
+                raw.changeDynamics(b, link, restitution=own[b, link], physicsClientId=cid)
 
     def _take(self, piece, h):
         """Set the world to take a partial step of ``piece`` seconds of the user's step of h:
