@@ -488,10 +488,11 @@ class BoxCCD:
         its own, and so do its partners in them. Not for a pair with a maximal-coordinate
         body either, whose restitution getDynamicsInfo does not report (what it returns is
         not the body's). Such impacts are resolved from the touch."""
-        lift = 0.5 * self.world.journal.contact_erp
-        cid, keys, maximal = self.cid, self.world.tables.keys, self.world.maximal
-        pairs = [(keys[fa], keys[fb]) for fa, fb in impacts if not maximal(keys[fa][0]) and not maximal(keys[fb][0])]
-        if not pairs or lift <= 0.0:
+        cid, lift = self.cid, 0.5 * self.world.journal.contact_erp
+        keys, maximal = self.world.tables.keys, self.world.maximal
+        pairs = [(keys[fa], keys[fb]) for fa, fb in impacts if not maximal(keys[fa][0]) and not maximal(keys[fb][0])] \
+            if lift > 0.0 else []
+        if not pairs:
             raw.stepSimulation(physicsClientId=cid)
             return
         own = {k: raw.getDynamicsInfo(*k, physicsClientId=cid)[5] for k in {k for pair in pairs for k in pair}}

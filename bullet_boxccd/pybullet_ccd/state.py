@@ -121,14 +121,11 @@ class FrameState:
         """Read the poses of static ``frames``; those pybullet holds not finite (the user placed
         them so) are told to ``not_finite``: nothing meets them, in pybullet or in a sweep."""
         self.read_poses(frames)
-        self._name_broken(frames, self.rows[frames][:, POSE])
+        self._name_broken(frames, self.rows[frames][:, POSE].tolist())
 
     def _name_broken(self, frames, poses):
-        """Tell ``not_finite`` the frames whose poses (one row each) are not finite."""
-        if not frames:
-            return
-        rows = poses.tolist() if isinstance(poses, np.ndarray) else poses
-        broken = [f for f, row in zip(frames, rows) if not all(map(math.isfinite, row))]
+        """Tell ``not_finite`` the frames whose poses (a list of numbers each) are not finite."""
+        broken = [f for f, row in zip(frames, poses) if not all(map(math.isfinite, row))]
         if broken:
             self._not_finite(broken)
 
