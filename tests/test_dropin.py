@@ -9,6 +9,8 @@ from __future__ import annotations
 
 import math
 import os
+import subprocess
+import sys
 import warnings
 
 import numpy as np
@@ -738,6 +740,88 @@ def test_a_fast_body_with_no_box_is_named_once(cid, shape):
         assert [m.split(", more than")[0] for m in messages] == expected, messages
         if named:
             assert x_of(cid, body) > 0.0  # pybullet let it through, as the warning says
+
+
+def test_a_fast_body_of_links_with_no_box_is_named_once(cid):
+    """Two spheres on a hinge (no box: BoxCCD cannot sweep them) thrown at 150 m/s through a
+    1 cm box wall, as plain pybullet lets them: named once, with the base's move a step."""
+    reset(cid)
+    box(cid, [0.005, 1, 1], [0, 0, 0], mass=0.0)
+    sphere = p.createCollisionShape(p.GEOM_SPHERE, radius=0.05, physicsClientId=cid)
+    body = p.createMultiBody(1.0, sphere, basePosition=[-0.5, 0, 0], linkMasses=[1],
+                             linkCollisionShapeIndices=[sphere], linkVisualShapeIndices=[-1],
+                             linkPositions=[[0, 0, 0.2]], linkOrientations=[[0, 0, 0, 1]],
+                             linkInertialFramePositions=[[0, 0, 0]], linkInertialFrameOrientations=[[0, 0, 0, 1]],
+                             linkParentIndices=[0], linkJointTypes=[p.JOINT_REVOLUTE], linkJointAxis=[[1, 0, 0]],
+                             physicsClientId=cid)
+    p.changeDynamics(body, -1, linearDamping=0, maxJointVelocity=1000, physicsClientId=cid)
+    p.resetBaseVelocity(body, [150.0, 0, 0], physicsClientId=cid)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        run(cid, True, 20)
+    messages = [str(w.message) for w in caught if issubclass(w.category, BoxCCDWarning)]
+    assert [m.split(", more than")[0] for m in messages] == [f"body {body} (sphere) moves {150.0 * DT:.3g} m a step"], \
+        messages
+    assert x_of(cid, body) > 0.0  # pybullet let it through, as the warning says
+
+
+def test_steps_taken_by_pybullet_directly_are_named_once(cid):
+    """The user calls p.stepSimulation between BoxCCD's steps: those steps are pybullet's alone
+    (named once; not the steps taken before BoxCCD was made), and a slow world with a
+    platform Bullet moves by its velocity stays bit-identical to plain pybullet stepped
+    alike."""
+    worlds = []
+    for use in (False, True):
+        reset(cid, gravity=-9.81)
+        box(cid, [2, 2, 0.05], [0, 0, -0.05], mass=0.0)
+        platform = box(cid, [0.2, 0.2, 0.02], [-1, 0, 0.3], mass=0.0)
+        p.resetBaseVelocity(platform, [3, 0, 0], physicsClientId=cid)
+        cube = box(cid, [0.05] * 3, [0.5, 0.5, 0.05])
+        p.resetBaseVelocity(cube, [0, 0, 0], [0, 0, 2], physicsClientId=cid)
+        p.stepSimulation(physicsClientId=cid)
+        ccd = BoxCCD(cid) if use else None
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            for k in range(40):
+                ccd.step() if use and k % 3 else p.stepSimulation(physicsClientId=cid)
+        worlds.append([(p.getBasePositionAndOrientation(b, physicsClientId=cid),
+                        p.getBaseVelocity(b, physicsClientId=cid)) for b in (platform, cube)])
+    messages = [str(w.message) for w in caught if issubclass(w.category, BoxCCDWarning)]
+    assert len(messages) == 1 and messages[0].startswith("p.stepSimulation was called on this world directly"), \
+        messages
+    assert worlds[0] == worlds[1]
+
+
+def test_settings_pybullet_does_not_report_of_a_client_connected_before_the_import_are_named():
+    """A client connected before bullet_boxccd was imported may have a contactERP and a
+    collisionFilterMode that pybullet does not report: BoxCCD names them once (and not those
+    set again after the import); a client connected after the import is not named."""
+    script = """
+import warnings
+import pybullet as p
+before = p.connect(p.DIRECT)
+p.setPhysicsEngineParameter(collisionFilterMode=0, physicsClientId=before)
+again = p.connect(p.DIRECT)
+from bullet_boxccd import BoxCCD
+p.setPhysicsEngineParameter(contactERP=0.1, physicsClientId=again)
+after = p.connect(p.DIRECT)
+with warnings.catch_warnings(record=True) as caught:
+    warnings.simplefilter("always")
+    for cid in (before, again, after):
+        p.setPhysicsEngineParameter(numSubSteps=0, physicsClientId=cid)
+        ccd = BoxCCD(cid)
+        ccd.step()
+        ccd.step()
+        said = [str(w.message).removeprefix(f"physics client {cid}: ") for w in caught]
+        print(cid, repr([m.split(":")[0] for m in said]))
+        caught.clear()
+"""
+    out = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0, out.stderr
+    lines = [line for line in out.stdout.splitlines() if line[:1].isdigit()]
+    named = "this client was connected before bullet_boxccd was imported, and pybullet does not report its {}"
+    assert lines == [f"0 {[named.format('collisionFilterMode and contactERP')]!r}",
+                     f"1 {[named.format('collisionFilterMode')]!r}", "2 []"], out.stdout
 
 
 @pytest.mark.parametrize("case, named", [("plain", True), ("maximal", True), ("pair filter", False),

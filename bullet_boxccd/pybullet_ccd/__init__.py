@@ -150,6 +150,7 @@ class BoxCCD:
         self._reset_seen = self.world.journal.reset
         self._alone = False  # pybullet steps the world alone (see _unswept_step)
         self._moves_seen = self.world.journal.last_move  # moves made while building the world are not sweeps
+        self._stepped_seen = self.world.journal.stepped  # (direct steps before BoxCCD was made are no concern)
         self._quiet, self._epoch = False, -1  # whether a step may skip every check (see step)
         self._known = False  # whether the frame-state rows hold the velocities the next step starts from
         self._partial = False  # whether the world is set for a partial step (its time step and contact ERP)
@@ -173,6 +174,18 @@ class BoxCCD:
             self._warned.clear()
             self._reset_seen = j.reset
             self._alone = False
+        if j.stepped > self._stepped_seen:
+            self._stepped_seen = j.stepped
+            self._warn(("stepped",), "p.stepSimulation was called on this world directly: pybullet takes such steps "
+                                     "alone, unswept (a fast box can pass through in them); call BoxCCD.step() "
+                                     "in their place")
+        if j.unknown:
+            unknown = " and ".join(sorted(j.unknown))
+            self._warn(("unknown", unknown), f"this client was connected before bullet_boxccd was imported, and "
+                                             f"pybullet does not report its {unknown}: BoxCCD takes pybullet's "
+                                             "defaults (contactERP 0.08, collisionFilterMode 1), and sets the "
+                                             "contact ERP back to that after its partial steps. Import "
+                                             "bullet_boxccd before connecting, or set them again after importing it")
         if self.world.sync():
             self.stats.rediscoveries += 1
             self._forget_renewed(j)
@@ -191,8 +204,7 @@ class BoxCCD:
             self._partial_steps = self.max_partial_steps if self.max_partial_steps is not None else \
                 min(_PARTIAL_STEPS[1], max(_PARTIAL_STEPS[0], _PARTIAL_BODY_STEPS // max(moving, 1)))
             self._unswept = {k: v for k, v in t.unswept.items() if ("unswept", *k) not in self._warned}
-            self._fast_unswept = {b: self._half_thinnest(b) for b in t.other_rigid
-                                  if (b, -1) in t.unswept and ("fast unswept", b) not in self._warned}
+            self._fast_unswept = self._loose_unswept(t)
             self._known = False
             self.stats.tracked_boxes = len(t.half)
             small = t.half.min() if len(t.half) else math.inf
@@ -212,7 +224,7 @@ class BoxCCD:
         j, t, seen = self.world.journal, self.world.tables, self._moves_seen
         if j.last_move <= seen or not self._known:
             return
-        if j.restored > seen:
+        if j.restored > seen or j.stepped > seen:
             self._known = False
             return
         changed = {b for b, s in j.velocity_set.items() if s > seen} | {b for b, s in j.moved.items() if s > seen}
@@ -232,6 +244,8 @@ class BoxCCD:
         if j.restored > seen:  # restoreState: every body jumped; no kinematic move is known
             self._state.read_poses(np.flatnonzero(t.kind == STATIC).tolist())
             return [], [], set(range(len(t.keys)))
+        if j.stepped > seen:  # pybullet stepped the world directly: Bullet moved the frames with a velocity
+            self._state.read_poses(sorted(self._state.with_velocity))
         moved = [f for b, s in j.moved.items() if s > seen for f in t.frames_of.get(b, ())]
         given = [f for b, s in j.velocity_set.items() if s > seen for f in t.frames_of.get(b, ())]
         free = set(self._state.moving)
@@ -341,7 +355,9 @@ class BoxCCD:
             self._warn(("joint damping",), f"with numSubSteps > 1 BoxCCD takes the substeps itself: the joint damping "
                                            f"of body {damped} (and any other), which pybullet computes once a step "
                                            "from the joint velocities it starts with, is computed again for each "
-                                           "substep, so its joints move slightly otherwise than in plain pybullet")
+                                           "substep, as a finer step computes it, so its joints move otherwise than "
+                                           "in plain pybullet (far otherwise where the damping is strong for a "
+                                           "link's inertia)")
         return self._substepped(struck, self._step)
 
     def _substepped(self, struck, step):
@@ -619,23 +635,32 @@ class BoxCCD:
         self.stats.contacts += len(events)
         return sorted(events, key=lambda e: e.tau), tau
 
-    def _half_thinnest(self, b):
-        """Half the smallest extent of body b's bounding box (pybullet's, as it stands)."""
-        lo, hi = raw.getAABB(b, -1, physicsClientId=self.cid)
-        return 0.5 * min(y - x for x, y in zip(lo, hi))
+    def _loose_unswept(self, t):
+        """Bodies with no box that moves whose base is free (a single body, or one with links
+        on a base of mass), with shapes left to pybullet, not yet named as fast: {body: (half
+        the smallest extent of those shapes' bounding boxes, what they are)}."""
+        cid, out = self.cid, {}
+        for b in t.other_rigid + [b for b in t.other_chains if raw.getDynamicsInfo(b, -1, physicsClientId=cid)[0] > 0]:
+            left = {link: what for (body, link), what in t.unswept.items() if body == b}
+            if left and ("fast unswept", b) not in self._warned:
+                boxes = [raw.getAABB(b, link, physicsClientId=cid) for link in left]
+                half = min(0.5 * min(y - x for x, y in zip(lo, hi)) for lo, hi in boxes)
+                out[b] = (half, ", ".join(sorted(set(left.values()))))
+        return out
 
     def _name_fast_unswept(self):
-        """Free bodies with no box that moved farther in the (sub)step just taken than half
-        their smallest extent (far enough to cross a shape of no thickness): named once each."""
+        """Free bodies with no box whose base moved farther in the (sub)step just taken than
+        half the smallest extent of their shapes (far enough to cross a shape of no
+        thickness): named once each."""
         h = self._dt / self._substeps
-        for b, half in list(self._fast_unswept.items()):
+        for b, (half, what) in list(self._fast_unswept.items()):
             move = math.hypot(*raw.getBaseVelocity(b, physicsClientId=self.cid)[0]) * h
             if move > half:
                 del self._fast_unswept[b]
                 self._warn(("fast unswept", b),
-                           f"body {b} ({self.world.tables.unswept[(b, -1)]}) moves {move:.3g} m a step, more than half "
-                           f"its smallest extent ({half:.3g} m): BoxCCD sweeps boxes only, so pybullet alone meets "
-                           "its contacts and it can pass through what it meets")
+                           f"body {b} ({what}) moves {move:.3g} m a step, more than half the smallest extent of its "
+                           f"shapes ({half:.3g} m): BoxCCD sweeps boxes only, so pybullet alone meets its contacts "
+                           "and it can pass through what it meets")
 
     def _near_unswept(self, keys):
         """Shapes left to pybullet that a fast box came near: named once each."""

@@ -114,8 +114,11 @@ class Journal:
     over_clamp: dict = field(default_factory=dict)  # body -> serial of the latest one above MAX_VELOCITY
     last_over: int = 0  # the latest serial in ``over_clamp``
     restored: int = 0  # restoreState: every body jumped
-    last_move: int = 0  # the latest of the three above
-    stepped: int = 0  # the user called stepSimulation directly
+    last_move: int = 0  # the latest serial of a move: ``moved``, ``velocity_set``, ``restored``, ``stepped``
+    stepped: int = 0  # serial of the user's latest direct stepSimulation (also a move of every body)
+    # Settings pybullet does not report, of a client connected before this package was
+    # imported, that were not set since (pybullet's defaults are assumed for them).
+    unknown: set = field(default_factory=set)
     # Per-step impulses pybullet clears after every stepSimulation: replayed before each
     # substep when BoxCCD runs a world's substeps itself. (name, args) for raw calls.
     impulses: list = field(default_factory=list)
@@ -148,6 +151,11 @@ class Journal:
 
 
 _journals: dict = {}
+# Clients connected when this package was imported (install): what was set on them before
+# is not known. pybullet reports neither of these settings.
+_connected_before: set = set()
+_MAX_CLIENTS = 1024  # pybullet's MAX_PHYSICS_CLIENTS
+UNREPORTED = ("contactERP", "collisionFilterMode")
 
 
 def journal(cid: int) -> Journal:
@@ -155,6 +163,8 @@ def journal(cid: int) -> Journal:
     j = _journals.get(cid)
     if j is None:
         j = _journals[cid] = Journal()
+        if cid in _connected_before:
+            j.unknown = set(UNREPORTED)
     return j
 
 
@@ -390,6 +400,7 @@ def _reset_simulation(cid, a, result):
 
 
 def _disconnect(cid, a, result):
+    _connected_before.discard(cid)  # a client connected under its id later is seen from the start
     j = _journals.pop(cid, None)
     if j is not None:
         j.closed = True
@@ -566,16 +577,20 @@ def _set_engine_parameter(cid, a, result):
     if mode is not None:
         j.filter_mode = int(mode)
         j.filters = next(_serial)
+        j.unknown.discard("collisionFilterMode")
     substeps = a.get("numSubSteps")
     if substeps is not None:
         j.num_substeps = int(substeps)
     if a.get("contactERP") is not None:
         j.contact_erp = float(a["contactERP"])
+        j.unknown.discard("contactERP")
     _params_set(j, {k: a[k] for k in ("fixedTimeStep", "numSubSteps") if a.get(k) is not None})
 
 
 def _set_contact_erp(cid, a, result):
-    journal(cid).contact_erp = float(a["defaultContactERP"])  # the same setting as contactERP (measured)
+    j = journal(cid)
+    j.contact_erp = float(a["defaultContactERP"])  # the same setting as contactERP (measured)
+    j.unknown.discard("contactERP")
 
 
 def _set_params(cid, a, result):
@@ -635,7 +650,7 @@ def _restore_state(cid, a, result):
 
 def _step(cid, a, result):
     j = journal(cid)
-    j.stepped = next(_serial)
+    j.stepped = j.last_move = next(_serial)
     j.impulses.clear()
 
 
@@ -848,6 +863,8 @@ def install() -> None:
     """Wrap pybullet's world-changing functions (once per process)."""
     originals = getattr(pybullet, "_bullet_boxccd_originals", None)
     if originals is None:
+        _connected_before.update(i for i in range(_MAX_CLIENTS)
+                                 if pybullet.getConnectionInfo(physicsClientId=i)["isConnected"])
         originals = {name: getattr(pybullet, name) for name in WRAPPED if hasattr(pybullet, name)}
         for name, fn in originals.items():
             setattr(pybullet, name, _wrap(name, fn, WRAPPED[name]))

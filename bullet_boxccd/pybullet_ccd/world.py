@@ -184,8 +184,9 @@ class World:
             self._warn(("unseen",) + tuple(unseen),
                        f"bodies {unseen} were created before bullet_boxccd was imported (or through a pybullet "
                        "function it does not see): collision filters set on them with pybullet's own calls, "
-                       "their removal and re-creation under the same id, and kinematic moves cannot be known. "
-                       "Import bullet_boxccd before building the world.")
+                       "their damping and velocity clamp set by changeDynamics (pybullet's defaults are "
+                       "assumed), their removal and re-creation under the same id, and kinematic moves cannot "
+                       "be known. Import bullet_boxccd before building the world.")
         for b, why in self.journal.filters_unknown.items():
             if b in self._bodies:
                 self._warn(("groups", b), f"body {b}: collision groups are not mirrored ({why}); BoxCCD may sweep "
