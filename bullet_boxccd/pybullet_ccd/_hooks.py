@@ -19,8 +19,8 @@ each function's parameter lists in the order pybullet tries them, legacy forms s
 
 Limits (BoxCCD warns where it meets them): calls made through references to
 pybullet's functions taken before this package was imported (``from pybullet import
-setCollisionFilterPair`` first) are not seen, nor changes made by another process
-connected to the same server.
+setCollisionFilterPair`` first) are not seen, nor settings made on a client before this
+package was imported, nor changes made by another process connected to the same server.
 """
 
 from __future__ import annotations
