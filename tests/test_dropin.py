@@ -792,7 +792,7 @@ def test_steps_taken_by_pybullet_directly_are_named_once(cid):
     assert worlds[0] == worlds[1]
 
 
-def test_settings_pybullet_does_not_report_of_a_client_connected_before_the_import_are_named():
+def test_settings_pybullet_does_not_report_of_a_client_connected_before_the_import_are_named(tmp_path):
     """A client connected before bullet_boxccd was imported may have a contactERP and a
     collisionFilterMode that pybullet does not report: BoxCCD names them once (and not those
     set again after the import); a client connected after the import is not named."""
@@ -816,7 +816,8 @@ with warnings.catch_warnings(record=True) as caught:
         print(cid, repr([m.split(":")[0] for m in said]))
         caught.clear()
 """
-    out = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=120)
+    # (run outside the checkout, which would shadow the installed package)
+    out = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=120, cwd=tmp_path)
     assert out.returncode == 0, out.stderr
     lines = [line for line in out.stdout.splitlines() if line[:1].isdigit()]
     named = "this client was connected before bullet_boxccd was imported, and pybullet does not report its {}"
