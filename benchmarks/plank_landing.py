@@ -14,21 +14,22 @@ Per method, over the seeds:
 * ``spin`` median and max: the fastest spin over the run;
 
 and the same for plain pybullet, BoxCCD and 16 substeps run from the reference's state at
-the end of the step of its first impact on (what the steps after the impact do alone).
+the end of the step of its first impact on, and for the reference, plain pybullet and
+BoxCCD from BoxCCD's (what the steps after the impact do alone).
 
 A landing plank first strikes with one end; at a fine step it then pivots on that end
 while it turns down, its contact solved at every fine step, and its far end's slap ends
 the motion. BoxCCD resolves the first impact at the touch (its spin within a few percent
 of the reference's); the pivot that follows is a contact that began before the step,
-which pybullet takes in whole steps (at 60 Hz the plank turns 0.5 to 1 rad a step), and
-from there the far end's slap often throws the plank up spinning. Plain pybullet over
-this thick floor lands the plank deep inside it in one step (its first spin far off) and
-pushes it out flat. From the converged engine's first impact on, plain pybullet's
-whole steps lose planks too; finer steps (``numSubSteps``) follow the pivot.
+which pybullet takes in whole steps (at 60 Hz the plank turns 0.5 to 1 rad a step, and
+solved once a step, its pivot end leaves the floor), and the far end's slap, which BoxCCD
+resolves at its touch, then often throws the plank up spinning. Plain pybullet over this
+thick floor lands the plank deep inside it in one step (its first spin far off) and
+pushes it out flat, and its slaps likewise. Finer steps (``numSubSteps``) hold the pivot.
 
 Run
 ---
-    python benchmarks/plank_landing.py              # 32 seeds, about 30 s
+    python benchmarks/plank_landing.py              # 32 seeds, about 45 s
 """
 
 from __future__ import annotations
@@ -99,25 +100,26 @@ def main(argv=None):
     methods = {"plain": ("plain", None), "boxccd": ("boxccd", None),
                "boxccd max_turn=0.1": ("boxccd", {"max_turn": 0.1}), "sub16": ("sub16", None),
                f"ref (dt/{K})": ("ref", None), f"ref2 (dt/{2 * K})": ("ref2", None)}
-    handed = {"plain": "plain", "boxccd": "boxccd", "sub16": "sub16"}
-    runs = {name: [] for name in methods}
-    runs.update({f"{name}, from the reference's first impact on": [] for name in handed})
     ref_name = f"ref (dt/{K})"
+    # Each method run again from another's state at the end of the step of its first impact.
+    handed = [(m, ref_name, "the reference's") for m in ("plain", "boxccd", "sub16")] + \
+             [(m, "boxccd", "BoxCCD's") for m in ("ref", "plain", "boxccd")]
+    runs = {name: [] for name in methods}
+    runs.update({f"{m}, from {whose} first impact on": [] for m, _, whose in handed})
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # (the planks' spins may reach pybullet's velocity clamp: named by BoxCCD)
         for seed in range(args.seeds):
             for name, (method, knobs) in methods.items():
                 runs[name].append(land(seed, method, knobs))
-            for name, method in handed.items():
-                runs[f"{name}, from the reference's first impact on"].append(
-                    land(seed, method, start=runs[ref_name][-1][3]))
+            for method, source, whose in handed:
+                runs[f"{method}, from {whose} first impact on"].append(land(seed, method, start=runs[source][-1][3]))
     ref = runs[ref_name]
     print(f"A plank (0.4-1.5 m, 5 x 5 cm) dropped from 2-10 m onto a 1 m thick box floor at 60 Hz, "
           f"{args.seeds} seeds, {SECONDS} s\n")
     print("| method | first spin: median error | lying at the end | spin median (rad/s) | spin max |")
     print("|---|---|---|---|---|")
     for name, rs in runs.items():
-        if "from the" in name:
+        if ", from " in name:
             err = "-"
         else:
             k = [r[3][1] for r in ref]  # the step the reference's plank first turns in
