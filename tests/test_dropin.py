@@ -808,7 +808,6 @@ after = p.connect(p.DIRECT)
 with warnings.catch_warnings(record=True) as caught:
     warnings.simplefilter("always")
     for cid in (before, again, after):
-        p.setPhysicsEngineParameter(numSubSteps=0, physicsClientId=cid)
         ccd = BoxCCD(cid)
         ccd.step()
         ccd.step()
