@@ -39,17 +39,13 @@ import warnings
 
 import numpy as np
 import pybullet as p
+from _fidelity_scenes import quat
 
 from bullet_boxccd import BoxCCD
 
 DT = 1 / 60
 SECONDS = 2.5
 K = 128  # the reference's step: DT / K (and DT / 2K, its convergence)
-
-
-def quat(rng):
-    q = rng.normal(size=4)
-    return (q / np.linalg.norm(q)).tolist()
 
 
 def land(seed, method, knobs=None, start=None):

@@ -639,13 +639,15 @@ class BoxCCD:
         """Bodies with no box that moves whose base is free (a single body, or one with links
         on a base of mass), with shapes left to pybullet, not yet named as fast: {body: (half
         the smallest extent of those shapes' bounding boxes, what they are)}."""
-        cid, out = self.cid, {}
-        for b in t.other_rigid + [b for b in t.other_chains if raw.getDynamicsInfo(b, -1, physicsClientId=cid)[0] > 0]:
-            left = {link: what for (body, link), what in t.unswept.items() if body == b}
-            if left and ("fast unswept", b) not in self._warned:
-                boxes = [raw.getAABB(b, link, physicsClientId=cid) for link in left]
+        left = {}  # body -> {link: what} of its shapes left to pybullet
+        for (b, link), what in t.unswept.items():
+            left.setdefault(b, {})[link] = what
+        out = {}
+        for b in t.other_rigid + [b for b in t.other_chains if not self.world.fixed_base(b)]:
+            if b in left and ("fast unswept", b) not in self._warned:
+                boxes = [raw.getAABB(b, link, physicsClientId=self.cid) for link in left[b]]
                 half = min(0.5 * min(y - x for x, y in zip(lo, hi)) for lo, hi in boxes)
-                out[b] = (half, ", ".join(sorted(set(left.values()))))
+                out[b] = (half, ", ".join(sorted(set(left[b].values()))))
         return out
 
     def _name_fast_unswept(self):

@@ -410,6 +410,11 @@ class World:
             other_rigid=rigid, other_chains=chains, other_fixed=fixed, other_stuck=stuck)
 
     # ---------------------------------------------------------------- summary
+    def fixed_base(self, b) -> bool:
+        """Whether body b's base is fixed (of no mass), as read when the body was."""
+        rec = self._bodies.get(b)
+        return rec is not None and rec.fixed_base
+
     def maximal(self, b) -> bool:
         """Whether body b is in maximal coordinates (a btRigidBody: pybullet's velocity clamp
         is its multibodies')."""
