@@ -50,7 +50,7 @@ from .layout import ANGULAR_VELOCITY
 from .others import Others
 from .state import FrameState
 from .sweep import jump_sweep, sweep
-from .world import STATIC, World, warn_once
+from .world import FREE, STATIC, World, warn_once
 
 __all__ = ["BoxCCD", "BoxCCDWarning", "ClientDisconnectedError", "CCDEvent", "CCDStats"]
 
@@ -62,6 +62,9 @@ _CLAMP = 0.999 * 0.25 * math.pi  # (rad) just under Bullet's largest turn of a b
 # (docs/design.md, mechanisms tried).
 _PARTIAL_BODY_STEPS = 256
 _PARTIAL_STEPS = (8, 32)
+# A body pivoting on a contact turns in one stepSimulation by no more than keeps the drift of
+# the point it pivots on under this share of its thinnest half extent (see _turn_limits).
+_PIVOT_DRIFT = 0.25
 
 
 class BoxCCD:
@@ -111,7 +114,11 @@ class BoxCCD:
         Bullet turns a body at most pi/4 a step, and above that its solver sees a spin
         that its integration does not make. Shorter pieces follow a spinning body's
         contact more closely, and its gyroscopic term more stably, at a partial step
-        each. Default pi/4 (just under).
+        each. Default pi/4 (just under). A long body turns less: by at most
+        sqrt(thin / 2r) (thin: its thinnest half extent, r: its reach), where the point it
+        pivots on drifts off its pivot by a quarter of thin; and so does a free body an
+        impact set turning, in the steps after it while it touches something (the step
+        is then taken in pieces).
     tolerances : Tolerances
         Solver tolerances.
     """
@@ -158,6 +165,7 @@ class BoxCCD:
         # and those of them struck by an impact then (its impulse acts whole at that start);
         # the frames a step stopped at an impact, struck as the next step begins.
         self._acted, self._struck, self._struck_next = set(), set(), set()
+        self._turning = set()  # free frames an impact the world went back to set turning (see _step_pieces)
         self._clamp_candidates = set()  # frames swept as fast, or read at the velocity clamp, in the current (sub)step
         self._damped = (None, None)  # (when read, a body with a damped joint)
         self._sync()
@@ -203,6 +211,8 @@ class BoxCCD:
             moving = len(self._state.moving) + len(self._chains.frames)
             self._partial_steps = self.max_partial_steps if self.max_partial_steps is not None else \
                 min(_PARTIAL_STEPS[1], max(_PARTIAL_STEPS[0], _PARTIAL_BODY_STEPS // max(moving, 1)))
+            self._turn_limit = self._turn_limits(t)
+            self._turning = set()  # (the frames are numbered anew)
             self._unswept = {k: v for k, v in t.unswept.items() if ("unswept", *k) not in self._warned}
             self._fast_unswept = self._loose_unswept(t)
             self._known = False
@@ -213,7 +223,8 @@ class BoxCCD:
                                                   f"the thinnest tracked box (half extent {small:g} m)")
         if j.params > self._params_seen or j.reset > self._params_seen:
             params = raw.getPhysicsEngineParameters(physicsClientId=self.cid)
-            self._dt, self._substeps = params["fixedTimeStep"], max(int(params.get("numSubSteps", 0)), 1)
+            self._dt, self._user_substeps = params["fixedTimeStep"], int(params.get("numSubSteps", 0))
+            self._substeps = max(self._user_substeps, 1)
             self._gravity = np.array([params.get(f"gravityAcceleration{c}", 0.0) for c in "XYZ"])
             self._params_seen = max(j.params, j.reset)
 
@@ -301,8 +312,9 @@ class BoxCCD:
             self.stats.steps += 1
             if not self._watched:
                 return self._pybullet_alone()
-            events = self._quiet_step(self._dt, 0.0, self._dt, struck) if self._substeps == 1 else \
-                self._substepped(struck, self._quiet_step)
+            n = self._step_pieces()
+            events = self._quiet_step(self._dt, 0.0, self._dt, struck) if n == 1 else \
+                self._substepped(struck, self._quiet_step, n)
         else:
             events = self._full_step(struck)
             self.stats.steps += 1
@@ -343,8 +355,11 @@ class BoxCCD:
         dt, n = self._dt, self._substeps
         if self._alone or not self._timed():
             return self._unswept_step(dt, n, struck)
-        if n == 1:
+        pieces = self._step_pieces()
+        if pieces == 1:
             return self._step(dt, 0.0, dt, struck)
+        if n == 1:
+            return self._substepped(struck, self._step, pieces)
         if not self._watched and not self._state.with_velocity:
             return self._pybullet_alone()
         if self.world.journal.pd_control:
@@ -358,12 +373,46 @@ class BoxCCD:
                                            "substep, as a finer step computes it, so its joints move otherwise than "
                                            "in plain pybullet (far otherwise where the damping is strong for a "
                                            "link's inertia)")
-        return self._substepped(struck, self._step)
+        return self._substepped(struck, self._step, pieces)
 
-    def _substepped(self, struck, step):
-        """The user's step taken as its numSubSteps substeps, each by ``step(h, offset, dt,
-        struck)``."""
-        dt, n = self._dt, self._substeps
+    def _turn_limits(self, t):
+        """Per frame, the largest turn (rad) it makes in one stepSimulation while it pivots on
+        a contact: pybullet solves a contact once a stepSimulation, and a body turning by a
+        about its centre of mass in one moves the point it pivots on off its pivot by about
+        r a^2 / 2 (r: its reach), where a finer step holds that point down. The limit keeps
+        that drift under _PIVOT_DRIFT of its thinnest half extent, and the turn under
+        max_turn: a landing plank's end stays on the floor while it turns down
+        (benchmarks/plank_landing.py)."""
+        limit = np.full(len(t.keys), self.max_turn)
+        for f, boxes in enumerate(t.frame_boxes):
+            if len(boxes):
+                pivot = 2.0 * _PIVOT_DRIFT * float(t.half[boxes].min()) / float(t.radius[boxes].max())
+                limit[f] = min(self.max_turn, math.sqrt(pivot))
+        return limit
+
+    def _step_pieces(self):
+        """The stepSimulations the user's step is taken in: its numSubSteps, each split evenly
+        so that no free body an impact set turning (``_turning``) that touches something as
+        the step begins turns by more than its limit in one (``_turn_limits``). A body that
+        turns by less is let go."""
+        n = self._substeps
+        if not self._turning:
+            return n
+        t, rows, pieces = self.world.tables, self._state.rows, 1
+        for f in list(self._turning):
+            x, y, z = rows[f, ANGULAR_VELOCITY].tolist()
+            turns = math.sqrt(x * x + y * y + z * z) * self._dt / n / self._turn_limit[f]
+            if not turns > 1.0:  # (not a number, too: let go)
+                self._turning.discard(f)
+            elif turns > pieces and raw.getContactPoints(t.keys[f][0], linkIndexA=t.keys[f][1],
+                                                         physicsClientId=self.cid):
+                pieces = math.ceil(turns - 1e-9)
+        return n * pieces
+
+    def _substepped(self, struck, step, n):
+        """The user's step taken as n stepSimulations (its numSubSteps, or more:
+        ``_step_pieces``), each by ``step(h, offset, dt, struck)``."""
+        dt = self._dt
         events = []
         with self._substepping(dt, n):
             for k in range(n):
@@ -426,7 +475,7 @@ class BoxCCD:
         try:
             yield
         finally:
-            raw.setPhysicsEngineParameter(fixedTimeStep=dt, numSubSteps=n, physicsClientId=self.cid)
+            raw.setPhysicsEngineParameter(fixedTimeStep=dt, numSubSteps=self._user_substeps, physicsClientId=self.cid)
 
     def _step(self, h, offset, dt, struck, stepped=False, fast=None, sw=None):
         """One stepSimulation of h seconds (``offset`` into the user's step of dt), swept,
@@ -457,6 +506,8 @@ class BoxCCD:
                 found, tau = self._sweep(piece, t_sim, user_moved, back, stepped, fast, sw)
                 stepped, fast, sw = False, None, None
                 impacts = self.contacts.impacts if back and tau < 1.0 else []  # (the world went back to them)
+                kind = self.world.tables.kind
+                self._turning.update(f for pair in impacts for f in pair if kind[f] == FREE)
                 events += [_shifted(e, offset + elapsed, dt) for e in found]
                 elapsed += tau * piece
                 if h - elapsed <= 1e-9 * h:
@@ -538,37 +589,39 @@ class BoxCCD:
 
     def _piece(self, rest, hold):
         """The next partial step's length: the rest of the step, or an even share of it, so
-        that no body of the contact the world was taken back to turns by more than
-        ``max_turn`` in it (at most Bullet's clamp of pi/4 a step: above it, the turn Bullet
-        integrates is slower than the spin its contact solver sees, and a spinning box
-        would press on into what it strikes), and that no piece is longer than ``hold``."""
-        turn, most = self._spin() * rest, self.max_turn
-        n = max(math.ceil(turn / most - 1e-9) if turn > most else 1, math.ceil(rest / hold - 1e-9))
+        that no body of the contact the world was taken back to turns by more than its limit
+        in it (``_turn_limits``: at most ``max_turn``, under Bullet's clamp of pi/4 a step:
+        above it, the turn Bullet integrates is slower than the spin its contact solver
+        sees, and a spinning box would press on into what it strikes), and that no piece is
+        longer than ``hold``."""
+        turns = self._turn_rate() * rest
+        n = max(math.ceil(turns - 1e-9) if turns > 1.0 else 1, math.ceil(rest / hold - 1e-9))
         return rest / n
 
-    def _spin(self):
-        """The fastest spin (rad/s) of the frames of the contact the world was taken back to."""
-        rows, most = self._state.rows, 0.0
+    def _turn_rate(self):
+        """The fastest turn of the frames of the contact the world was taken back to, in
+        their turn limits a second."""
+        rows, limit, most = self._state.rows, self._turn_limit, 0.0
         for f in self._acted:
             x, y, z = rows[f, ANGULAR_VELOCITY].tolist()
-            most = max(most, math.sqrt(x * x + y * y + z * z))
+            most = max(most, math.sqrt(x * x + y * y + z * z) / limit[f])
         return most
 
     def _within_clamp(self, piece, h, impacts):
         """After a partial step of ``piece`` seconds: if the impact at its start spun a body of
-        the contact past ``max_turn`` in it, the world goes back to the partial step's
+        the contact past its turn limit in it, the world goes back to the partial step's
         start (every body where its path has it then, with the velocities it started with)
         and takes a partial step short enough for that spin, once (its velocities read; the
         ``impacts`` it began with resolved again as ``_simulate`` does). Returns its length."""
         st = self._state
-        spin = self._spin()
-        if spin * piece <= self.max_turn * (1.0 + 1e-9) or st.twist0 is None:
+        turns = self._turn_rate() * piece
+        if turns <= 1.0 + 1e-9 or st.twist0 is None:
             return piece
         self._chains.read(piece, st, True)
         self.contacts.world_to_start(self.world.tables, st, piece)
         self._chains.stop_all(0.0, st)
         self._others.back(piece, 0.0, self._gravity)
-        piece /= math.ceil(spin * piece / self.max_turn)
+        piece /= math.ceil(turns)
         self._take(piece, h)
         st.begin(True)
         self._simulate(impacts)
