@@ -493,6 +493,6 @@ def test_a_box_an_impact_set_turning_on_the_floor_is_not_spun_up(cid, seed):
     floor a step at a time and pybullet's gyroscopic term spins it up until it leaves at
     45 to 52 m/s (these two drops). The steps after the impact are taken in pieces while
     it turns on the floor: no body ends faster than twice the faster of plain pybullet and
-    the converged engine (here at a 256 times finer step) plus 2 m/s."""
+    pybullet at a 256 times finer step, plus 2 m/s (the fidelity bound on speed)."""
     plain, ref, mine = tray_drop(cid, seed, False), tray_drop(cid, seed, False, 256), tray_drop(cid, seed, True)
     assert np.all(mine <= 2 * np.maximum(plain, ref) + 2), (mine, plain, ref)
