@@ -56,36 +56,49 @@ SECONDS = 2.5
 K = 128  # the reference's step: DT / K (and DT / 2K, its convergence)
 
 
+def _floor(method):
+    """A client stepping at the method's step, with gravity and the 1 m thick box floor:
+    (client, pybullet steps per step of DT)."""
+    cid = p.connect(p.DIRECT)
+    fine = {"ref": K, "ref2": 2 * K}.get(method, 1)
+    p.setGravity(0, 0, -9.81, physicsClientId=cid)
+    p.setPhysicsEngineParameter(fixedTimeStep=DT / fine, numSubSteps=16 if method == "sub16" else 0,
+                                physicsClientId=cid)
+    floor = p.createCollisionShape(p.GEOM_BOX, halfExtents=[5, 5, 0.5], physicsClientId=cid)
+    p.createMultiBody(0, floor, basePosition=[0, 0, -0.5], physicsClientId=cid)
+    return cid, fine
+
+
+def _plank(cid, length, height, orn):
+    shape = p.createCollisionShape(p.GEOM_BOX, halfExtents=[length / 2, 0.025, 0.025], physicsClientId=cid)
+    return p.createMultiBody(length, shape, basePosition=[0, 0, height], baseOrientation=orn, physicsClientId=cid)
+
+
+def _stepper(cid, method, fine, knobs):
+    """One step of DT: BoxCCD's (made now) or pybullet's in ``fine`` steps."""
+    if method == "boxccd":
+        return BoxCCD(cid, **(knobs or {})).step
+    return lambda: [p.stepSimulation(physicsClientId=cid) for _ in range(fine)]
+
+
 def land(seed, method, knobs=None, start=None):
     """(spin after each step (rad/s), final height (m), final speed (m/s), the plank's state
     (pose, velocities) and step at the end of the step it first turns in) of the plank;
     from ``start`` (such a state and step) if given."""
     rng = np.random.default_rng(seed)
-    cid = p.connect(p.DIRECT)
+    cid, fine = _floor(method)
     try:
-        fine = {"ref": K, "ref2": 2 * K}.get(method, 1)
-        p.setGravity(0, 0, -9.81, physicsClientId=cid)
-        p.setPhysicsEngineParameter(fixedTimeStep=DT / fine, numSubSteps=16 if method == "sub16" else 0,
-                                    physicsClientId=cid)
-        floor = p.createCollisionShape(p.GEOM_BOX, halfExtents=[5, 5, 0.5], physicsClientId=cid)
-        p.createMultiBody(0, floor, basePosition=[0, 0, -0.5], physicsClientId=cid)
         length = rng.uniform(0.4, 1.5)
-        shape = p.createCollisionShape(p.GEOM_BOX, halfExtents=[length / 2, 0.025, 0.025], physicsClientId=cid)
-        plank = p.createMultiBody(length, shape, basePosition=[0, 0, rng.uniform(2, 10)], baseOrientation=quat(rng),
-                                  physicsClientId=cid)
+        plank = _plank(cid, length, rng.uniform(2, 10), quat(rng))
         first = start
         if start is not None:
             (pos, orn, v, w), k0 = start
             p.resetBasePositionAndOrientation(plank, pos, orn, physicsClientId=cid)
             p.resetBaseVelocity(plank, v, w, physicsClientId=cid)
-        ccd = BoxCCD(cid, **(knobs or {})) if method == "boxccd" else None
+        step = _stepper(cid, method, fine, knobs)
         spins = []
         for k in range(k0 + 1 if start else 0, int(round(SECONDS / DT))):
-            if ccd is not None:
-                ccd.step()
-            else:
-                for _ in range(fine):
-                    p.stepSimulation(physicsClientId=cid)
+            step()
             v, w = p.getBaseVelocity(plank, physicsClientId=cid)
             spins.append(float(np.linalg.norm(w)))
             if first is None and spins[-1] > 1e-3:
@@ -101,25 +114,13 @@ def land_flat(length, pitch, height, method, knobs=None):
     """The fastest roll (rad/s, about its long axis) of a plank dropped from rest at
     ``height``, pitched by ``pitch`` (rad) and not rolled, onto the floor: it lands on one
     end, pivots, and its far end's bottom edge slaps the floor flat, both corners at once."""
-    cid = p.connect(p.DIRECT)
+    cid, fine = _floor(method)
     try:
-        fine = K if method == "ref" else 1
-        p.setGravity(0, 0, -9.81, physicsClientId=cid)
-        p.setPhysicsEngineParameter(fixedTimeStep=DT / fine, numSubSteps=16 if method == "sub16" else 0,
-                                    physicsClientId=cid)
-        floor = p.createCollisionShape(p.GEOM_BOX, halfExtents=[5, 5, 0.5], physicsClientId=cid)
-        p.createMultiBody(0, floor, basePosition=[0, 0, -0.5], physicsClientId=cid)
-        shape = p.createCollisionShape(p.GEOM_BOX, halfExtents=[length / 2, 0.025, 0.025], physicsClientId=cid)
-        plank = p.createMultiBody(length, shape, basePosition=[0, 0, height],
-                                  baseOrientation=p.getQuaternionFromEuler([0, pitch, 0]), physicsClientId=cid)
-        ccd = BoxCCD(cid, **(knobs or {})) if method == "boxccd" else None
+        plank = _plank(cid, length, height, p.getQuaternionFromEuler([0, pitch, 0]))
+        step = _stepper(cid, method, fine, knobs)
         roll = 0.0
         for _ in range(int(round(SECONDS / DT))):
-            if ccd is not None:
-                ccd.step()
-            else:
-                for _ in range(fine):
-                    p.stepSimulation(physicsClientId=cid)
+            step()
             orn = p.getBasePositionAndOrientation(plank, physicsClientId=cid)[1]
             axis = np.array(p.getMatrixFromQuaternion(orn))[[0, 3, 6]]
             roll = max(roll, abs(float(axis @ p.getBaseVelocity(plank, physicsClientId=cid)[1])))

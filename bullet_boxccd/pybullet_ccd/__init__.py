@@ -398,14 +398,12 @@ class BoxCCD:
         n = self._substeps
         if not self._turning:
             return n
-        t, rows, pieces = self.world.tables, self._state.rows, 1
+        keys, pieces = self.world.tables.keys, 1
         for f in list(self._turning):
-            x, y, z = rows[f, ANGULAR_VELOCITY].tolist()
-            turns = math.sqrt(x * x + y * y + z * z) * self._dt / n / self._turn_limit[f]
+            turns = self._turns(f) * self._dt / n
             if not turns > 1.0:  # (not a number, too: let go)
                 self._turning.discard(f)
-            elif turns > pieces and raw.getContactPoints(t.keys[f][0], linkIndexA=t.keys[f][1],
-                                                         physicsClientId=self.cid):
+            elif turns > pieces and raw.getContactPoints(keys[f][0], linkIndexA=keys[f][1], physicsClientId=self.cid):
                 pieces = math.ceil(turns - 1e-9)
         return n * pieces
 
@@ -601,11 +599,12 @@ class BoxCCD:
     def _turn_rate(self):
         """The fastest turn of the frames of the contact the world was taken back to, in
         their turn limits a second."""
-        rows, limit, most = self._state.rows, self._turn_limit, 0.0
-        for f in self._acted:
-            x, y, z = rows[f, ANGULAR_VELOCITY].tolist()
-            most = max(most, math.sqrt(x * x + y * y + z * z) / limit[f])
-        return most
+        return max((self._turns(f) for f in self._acted), default=0.0)
+
+    def _turns(self, f):
+        """Frame f's spin, in its turn limits (``_turn_limits``) a second."""
+        x, y, z = self._state.rows[f, ANGULAR_VELOCITY].tolist()
+        return math.sqrt(x * x + y * y + z * z) / self._turn_limit[f]
 
     def _within_clamp(self, piece, h, impacts):
         """After a partial step of ``piece`` seconds: if the impact at its start spun a body of
