@@ -405,6 +405,7 @@ class BoxCCD:
                 self._turning.discard(f)
             elif turns > pieces and raw.getContactPoints(keys[f][0], linkIndexA=keys[f][1], physicsClientId=self.cid):
                 pieces = math.ceil(turns - 1e-9)
+        self.stats.pieces += n * (pieces - 1)
         return n * pieces
 
     def _substepped(self, struck, step, n):

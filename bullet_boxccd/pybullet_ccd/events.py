@@ -68,6 +68,9 @@ class CCDStats:
     contacts: int = 0
     rewinds: int = 0  # times the world, or a body on its own, was taken back to a contact
     partial_steps: int = 0  # rest-of-step simulations from such a contact
+    # stepSimulations added by taking steps in pieces while a body an impact set turning
+    # pivots on a contact faster than its turn limit (``max_turn``)
+    pieces: int = 0
     pushes: int = 0  # bodies moved ahead of a kinematic body that swept into them
     rediscoveries: int = 0  # world changes read
     # What the exact searches answered, by Outcome value (index with bullet_boxccd.Outcome):
