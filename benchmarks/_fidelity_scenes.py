@@ -306,7 +306,8 @@ def planks_build(w, rng, variant):
     from rest at 2-10 m (centres within 1.2 m of the middle) over a floor of 144 static box tiles
     (0.5 x 0.5 m, 2 cm thick, top at z = 0) covering 6 x 6 m; the step is 1/60 s. Run until 1 s
     after the last lands. Tunneled: a centre below the tiles over the floor (one that slid off
-    the edge is not counted)."""
+    the edge is not counted). Thrown: a centre that ends farther than 0.5 m from lying on the
+    tiles (off the floor, or still in the air a second after the last landing)."""
     tiles = set()
     for i in range(N_TILES):
         for j in range(N_TILES):
@@ -330,7 +331,8 @@ def planks_observe(w, s, k):
 def planks_measure(w, s):
     c = np.array([w.pos(b) for b in s.planks])
     over = np.all(np.abs(c[:, :2]) < TILE * N_TILES / 2, axis=1)
-    return dict(deepest=s.deepest, height=c[:, 2], tunneled=int(np.sum((c[:, 2] < -0.02) & over)))
+    return dict(deepest=s.deepest, height=c[:, 2], tunneled=int(np.sum((c[:, 2] < -0.02) & over)),
+                thrown=int(np.sum(np.abs(c[:, 2] - 0.025) > 0.5)))
 
 
 # ------------------------------------------------------------------ 5. rain
@@ -661,10 +663,14 @@ FAMILIES = {f.key: f for f in [
            [Figure("deepest pen. m (max)", lambda rs: float(np.max(all_of(rs, "deepest"))), 0.002),
             Figure("deepest pen. m (median)", _pct("deepest", med), 0.001),
             Figure("rest height m (median)", _pct("height", med), 0.005),
-            Figure("tunneled", _count("tunneled"), 0.5)],
-           Figure("mean |h - median h_ref| m",
-                  lambda rs, refs: float(np.mean(np.abs(all_of(rs, "height") - med(all_of(refs, "height"))))),
-                  0.01, True), "mean |rest height - ref's median| (m)"),
+            Figure("mean |h - median h_ref| m",
+                   lambda rs, refs: float(np.mean(np.abs(all_of(rs, "height") - med(all_of(refs, "height"))))), 0.01,
+                   True),
+            Figure("tunneled", _count("tunneled"), 0.5),
+            Figure("thrown", _count("thrown"), 0.5)],
+           Figure("thrown fraction - ref's",
+                  lambda rs, refs: (_count("thrown")(rs) - _count("thrown")(refs)) / (6.0 * len(rs)), 0.03, True),
+           "planks thrown off the tiles or up, fraction - ref's"),
     Family("rain", "5 rain of 48 boxes into traybox", 1 / 240, 64, 4, 1, ["48", "100", "1000"],
            rain_build, rain_observe, rain_measure,
            [Figure("tunneled", _count("tunneled"), 0.5),
