@@ -1,7 +1,7 @@
 """The core's judgement of one contact (``_core.judge_contact``: whether pybullet would
 resolve a pair wrongly from where a window of the step leaves it, and when the pair's
 depth reaches the depth acted at) on straight translations, whose touch and depths are
-known in closed form."""
+known in closed form. Impacts are judged at an impact depth equal to the penetration."""
 
 from __future__ import annotations
 
@@ -35,7 +35,8 @@ def judge(r, s_touch=None, lo=0.0, with_time=False, swap=False):
         tau = _core.first_touches(_core.window_rows(np.stack([a, b]), lo, 1.0), np.array([[0, 1]], dtype=np.int64),
                                   0.05, TOL, PENETRATION, CREEP)[0][0]
         s_touch = float(tau)
-    return _core.judge_contact(a, b, lo, s_touch, True, with_time, PENETRATION, DEPTH_TOLERANCE, CREEP, TOL)
+    return _core.judge_contact(a, b, lo, s_touch, True, with_time, False, PENETRATION, PENETRATION, DEPTH_TOLERANCE,
+                               CREEP, TOL)
 
 
 @pytest.mark.parametrize("swap", [False, True])
@@ -64,8 +65,8 @@ def test_an_overlap_at_the_end_is_wrong_past_the_depth_tolerance(end, wrong, swa
 
 
 def test_a_pair_that_stays_apart_has_no_contact():
-    c, wrong, s, *_ = _core.judge_contact(*rows(WALL, (0, 0), CUBE, (-0.5, -0.2)), 0.0, 0.0, True, True, PENETRATION,
-                                      DEPTH_TOLERANCE, CREEP, TOL)
+    c, wrong, s, *_ = _core.judge_contact(*rows(WALL, (0, 0), CUBE, (-0.5, -0.2)), 0.0, 0.0, True, True, False,
+                                          PENETRATION, PENETRATION, DEPTH_TOLERANCE, CREEP, TOL)
     assert c is None and not wrong and np.isnan(s)
 
 
@@ -119,7 +120,7 @@ def test_a_touching_pair_that_parts_and_meets_again_says_when():
     midway), and the next edge strikes and ends 3.1 mm in: wrong, parted, and touching
     again where its depth crosses 0 (apart just before)."""
     r = turning_rows(EDGE + 1e-4, 0.003, math.pi / 2)
-    c, wrong, _, _, parted, again = judge(r, s_touch=0.0)
+    c, wrong, _, _, parted, again, _ = judge(r, s_touch=0.0)
     assert c is not None and wrong and parted
     a, b = _core.RowBoxPath(r[0]), _core.RowBoxPath(r[1])
     assert 0.5 < again < 1.0
@@ -131,14 +132,14 @@ def test_a_touching_pair_that_parts_for_good_is_not_looked_at():
     """The same turn with the centre going 3 mm away instead: the next edge ends 2.9 mm
     short of the wall. Not wrong, so nothing is looked for."""
     r = turning_rows(EDGE + 1e-4, -0.003, math.pi / 2)
-    c, wrong, _, _, parted, again = judge(r, s_touch=0.0)
+    c, wrong, _, _, parted, again, _ = judge(r, s_touch=0.0)
     assert c is not None and not wrong and not parted and np.isnan(again)
 
 
 def test_a_touching_pair_pressed_through_is_never_apart_first():
     """0.1 mm in at the start and driven through the wall: it ends apart on the far side,
     but reached the pressing depth first: not parted (the press is acted on)."""
-    c, wrong, s, _, parted, again = judge(rows(WALL, (0, 0), CUBE, (-0.1099, 0.5)), s_touch=0.0)
+    c, wrong, s, _, parted, again, _ = judge(rows(WALL, (0, 0), CUBE, (-0.1099, 0.5)), s_touch=0.0)
     assert c is not None and wrong and not np.isnan(s)
     assert not parted and np.isnan(again)
 

@@ -1096,7 +1096,8 @@ def test_substeps_are_each_swept(cid, substeps):
 @pytest.mark.parametrize("kwargs", [
     dict(sweep_threshold=float("nan")), dict(sweep_threshold=-0.1), dict(sweep_threshold=float("inf")),
     dict(fit_tolerance=0.0), dict(fit_tolerance=2.0), dict(penetration=1.0), dict(penetration=0.0),
-    dict(penetration=float("nan")), dict(max_partial_steps=-1), dict(max_partial_steps=2.5),
+    dict(penetration=float("nan")), dict(impact_depth=0.0), dict(impact_depth=0.1), dict(max_partial_steps=-1),
+    dict(max_partial_steps=2.5),
     dict(depth_tolerance=-1.0), dict(depth_tolerance=float("nan")), dict(sweep_distance=-0.01),
     dict(sweep_distance="far"), dict(self_collision_bodies=[999]), dict(self_collision_bodies=5),
     dict(tolerances=1e-12), dict(max_turn=0.0),

@@ -88,10 +88,17 @@ class BoxCCD:
         smallest half extent, in (0, 1]; a step is split into 2, 4, ... pieces until it
         holds, and the box is inflated by what remains. Default 0.05.
     penetration : float
-        Depth (m) of the overlap of the sharp boxes at the time the world is taken back
-        to, in (0, 1e-3]. Bullet's box-box detector makes a contact from the touch on,
-        but at an overlap of 2e-7 m it may see one corner of a leading
-        edge or face and not the others. Default 1e-5.
+        Depth (m) by which a pair already touching must press in, or part, to count as
+        doing so, and the overlap at which a link's contact is resolved; at least this
+        for every impact. In (0, 1e-3]. Default 1e-5.
+    impact_depth : float
+        Overlap (m) at which an impact met inside a step is resolved: the world goes back
+        to where the pair overlaps by this much, at most a tenth of the thinner box's
+        smallest half extent. Bullet's box-box detector then sees every corner of an edge
+        or face that arrives within it, as pybullet at a fine step sees them (a plank's end
+        slapping the floor flat strikes with both corners); at 1e-5 m a roll of 1e-4 rad
+        hides one, whose partner's impulse alone rolls the plank. In (0, 0.01]. Default
+        1e-3.
     depth_tolerance : float
         A pair of free or kinematic bodies that meets inside a step and ends it
         overlapping by less than this (m), on the side it came from, or one already
@@ -125,7 +132,8 @@ class BoxCCD:
 
     def __init__(self, physics_client_id: int = 0, *, sweep_threshold: float = 0.25, sweep_distance: float = 0.01,
                  fit_tolerance: float = 0.05,
-                 penetration: float = 1e-5, depth_tolerance: float = 1e-3, self_collision_bodies=(),
+                 penetration: float = 1e-5, impact_depth: float = 1e-3, depth_tolerance: float = 1e-3,
+                 self_collision_bodies=(),
                  max_partial_steps: int | None = None, max_turn: float = _CLAMP,
                  tolerances: Tolerances = DEFAULT_TOLERANCES):
         self.cid = _client(physics_client_id)
@@ -133,6 +141,7 @@ class BoxCCD:
         self.sweep_distance = _number("sweep_distance", sweep_distance, 0.0, math.inf)
         self.fit_tolerance = _number("fit_tolerance", fit_tolerance, 0.0, 1.0, open_low=True)
         self.penetration = _number("penetration", penetration, 0.0, 1e-3, open_low=True)
+        self.impact_depth = _number("impact_depth", impact_depth, 0.0, 1e-2, open_low=True)
         self.depth_tolerance = _number("depth_tolerance", depth_tolerance, 0.0, math.inf)
         self.max_partial_steps = None if max_partial_steps is None else _count("max_partial_steps", max_partial_steps)
         self.max_turn = _number("max_turn", max_turn, 0.0, 0.25 * math.pi, open_low=True)
@@ -151,8 +160,8 @@ class BoxCCD:
                              "thinner than its move")
         bodies = _bodies(self.cid, self_collision_bodies, "self_collision_bodies")
         self.world = World(self.cid, bodies, self._warn)
-        self.contacts = Contacts(self.cid, self.penetration, self.depth_tolerance, self.fit_tolerance,
-                                 self.tolerances, self.stats, self._clamped)
+        self.contacts = Contacts(self.cid, self.penetration, self.impact_depth, self.depth_tolerance,
+                                 self.fit_tolerance, self.tolerances, self.stats, self._clamped)
         self._params_seen = -1
         self._reset_seen = self.world.journal.reset
         self._alone = False  # pybullet steps the world alone (see _unswept_step)
@@ -510,6 +519,7 @@ class BoxCCD:
                 events += [_shifted(e, offset + elapsed, dt) for e in found]
                 elapsed += tau * piece
                 if h - elapsed <= 1e-9 * h:
+                    self._struck_next |= self.contacts.met  # (impacts pybullet resolves as the next step begins)
                     break
                 # The world stands at ``elapsed``: simulate the rest from there, in pieces under
                 # the turn limit and ``hold``. After max_partial_steps of them no contact takes the
@@ -637,6 +647,7 @@ class BoxCCD:
         wrongly (returns (events, its time)); without, each such contact's bodies go back
         on their own (returns (events, 1))."""
         t = self.world.tables
+        self.contacts.met = set()
         if not len(t.half):
             return [], 1.0
         st = self._state

@@ -13,18 +13,27 @@ state at the end of the step decides:
 
 * Left to pybullet: the pair touched when the window began and ends less than
   ``depth_tolerance`` deeper without going wrong, or it met inside the window and ends
-  it overlapping by less than ``depth_tolerance`` on the right side; in either case
-  without going past the thinner box's middle on the way (``_core.judge_contact``).
-* Otherwise the world is taken back to the time the pair first overlaps by
-  ``penetration`` on Bullet's own path (a pair already touching: by a creep more than it
-  began with), and ``BoxCCD`` simulates the rest of the step from there, so that
-  pybullet's solver sees the contact as it begins. Every free body goes where its path
-  has it at that time, with the velocity it had there. Impacts that begin while the
-  first is still shallower than a quarter of the thinner box's half extent go back with
-  it, to the latest of their times: one partial step resolves them all, each from an
-  overlap at which pybullet's position correction adds less than it can at a fine step
-  (contact ERP times the depth over the step, at most ERP times the approach speed), where
-  a crowd would otherwise spend a partial step on each.
+  it overlapping by less than ``depth_tolerance`` on the right side, no shallower than
+  it was on the way (a turning box's corner that dipped in and is leaving would be seen
+  leaving); in either case without going past the thinner box's middle on the way
+  (``_core.judge_contact``). Such an impact, met inside the step, is pybullet's as the
+  next step begins: its bodies are struck there (below).
+* Otherwise the world is taken back to the time the pair first overlaps by the impact
+  depth on Bullet's own path (``impact_depth``, at most a tenth of the thinner box's
+  smallest half extent: Bullet's box-box detector then sees every corner of an edge or
+  face arriving within it, as at a fine step; against a plane, whose contact takes one
+  point, ``penetration``), a pair already touching by a creep more than it began with,
+  and ``BoxCCD`` simulates the rest of the step from there, so that pybullet's solver
+  sees the contact as it begins. Every free body goes where its path has it at that
+  time, with the velocity it had there. A pair touching as a window began at its impact
+  whose other corner strikes (one that was apart then reaches the impact depth before
+  the pair presses in by the creep) is an impact of its own, not a press: the next
+  corner of a turning box. Impacts that reach their impact depth while the first is
+  still shallower than a quarter of the thinner box's half extent go back with it, to
+  the latest of their times: one partial step resolves them all, each from an overlap at
+  which pybullet's position correction adds less than it can at a fine step (contact ERP
+  times the depth over the step, at most ERP times the approach speed), where a crowd
+  would otherwise spend a partial step on each.
 * A pair still pressing in after the world went back to it twice in the step, and every
   such pair once the step's partial steps are used up (``max_partial_steps``), stops on
   its own at that time instead, with its velocity there; pybullet resolves it as the
@@ -62,6 +71,7 @@ from ..solver import Outcome
 from ._hooks import raw
 from .events import CCDEvent
 from .layout import ANGULAR_VELOCITY, PATH_ROW, POSE, VELOCITY
+from .shapes import PLANE_HALF
 from .sweep import CREEP
 from .world import FREE
 
@@ -199,12 +209,14 @@ class _Paths:
 class Contacts:
     """The step's contacts in time order (see the module docstring)."""
 
-    def __init__(self, cid, penetration, depth_tolerance, fit_tolerance, tolerances, stats, clamped):
+    def __init__(self, cid, penetration, impact_depth, depth_tolerance, fit_tolerance, tolerances, stats, clamped):
         """``clamped(frames)``: those of the frames whose velocity pybullet's velocity clamp cut
         in the (partial) step just taken."""
         self.cid, self.penetration, self.depth_tolerance = cid, penetration, depth_tolerance
+        self.impact_depth = impact_depth
         self.fit_tolerance, self.tolerances, self.stats = fit_tolerance, tolerances, stats
         self.clamped = clamped
+        self.met = set()
 
     def resolve(self, sw, jw, tables, state, dt, user_moved, gravity, back=True, horizon=1.0, struck=(), presses=None):
         """Events of the step's sweep ``sw`` and of the kinematic jumps' sweep ``jw`` (either
@@ -219,9 +231,12 @@ class Contacts:
         of the contact the world goes back to are left in ``self.acted`` (and in ``self.struck``
         if it is an impact: met inside the step); without ``back``, the frames stopped at an
         impact are left in ``self.struck``. With ``back``, the pairs of frames of the impacts
-        the world goes back to are left in ``self.impacts``."""
+        the world goes back to are left in ``self.impacts``. The frames of contacts met inside
+        the step and left to pybullet, which end it overlapping, are left in ``self.met``:
+        pybullet resolves those impacts as the next step begins."""
         kinematic = set(state.kinematic)
         events, self.struck, self.acted, self._cut, self.impacts = [], set(), set(), set(), []
+        self.met = set()
         self._presses = {} if presses is None else presses
         pushed = self._jumps(jw, tables, state, dt, kinematic, user_moved, events) if jw is not None else {}
         paths = _Paths(sw, tables, state, dt, kinematic, struck, gravity) if sw is not None and sw.hits else None
@@ -322,17 +337,21 @@ class Contacts:
                 # impulse kept whole at every go back would pump energy into the pair), unless
                 # the clamp cut it (``_clamp_cut``).
                 key = (int(paths.frame[i]), int(paths.frame[j]))
-                if info["initial"]:
+                if not info["impact"]:
                     self._presses[key] = self._presses.get(key, 0) + 1
                     self._cut = self._clamp_cut(key)
                 self.acted = set(key)
-                self.struck = self.acted if self._cut or not info["initial"] else set()
-                if info["initial"]:
+                self.struck = self.acted if self._cut or info["impact"] else set()
+                if not info["impact"]:
                     return tau_r
                 self.impacts = [key]
                 return self._coalesce(paths, heap, order, i, j, tau_r, events)
             changed = self._act(paths, i, j, tau_r, info, user_moved)
             self._report(paths, i, j, info, bool(changed), events)
+            if info["action"] is None and not info["initial"] and info["contact"] is not None:
+                a, b = _core.RowBoxPath(paths.rows[i]), _core.RowBoxPath(paths.rows[j])
+                if _core.paths_depth(a, b, 1.0) >= 0.0:
+                    self.met.update((int(paths.frame[i]), int(paths.frame[j])))
             budget -= bool(changed)
             again = [sw.pairs[np.flatnonzero((pair_frames == f).any(axis=1))].tolist() for f in changed]
             again = [(i2, j2) for pairs in again for i2, j2 in pairs  # two bodies standing still: nothing more happens
@@ -377,7 +396,7 @@ class Contacts:
             if info["action"] is None:  # pybullet's: reported if the world goes back past it
                 passed.append((tau_r, i2, j2, info))
                 continue
-            if info["action"] != "back" or info["initial"]:
+            if info["action"] != "back" or not info["impact"]:
                 break
             self._report(paths, i2, j2, info, True, events)
             key = (int(paths.frame[i2]), int(paths.frame[j2]))
@@ -418,18 +437,29 @@ class Contacts:
         info = self._judge(paths, i, j, lo, touch, back)
         heapq.heappush(heap, (info["act_at"], next(order), i, j, (ta.version, tb.version), info))
 
+    def _impact_depth(self, paths, i, j):
+        """The overlap at which an impact of rows (i, j) is resolved: ``impact_depth``, at most a
+        tenth of the thinner box's smallest half extent, at least ``penetration``; against a
+        plane ``penetration`` (Bullet's plane contact takes one point, however deep)."""
+        a, b = paths.tables.half[paths.box[i]], paths.tables.half[paths.box[j]]
+        if max(a.max(), b.max()) >= PLANE_HALF:
+            return self.penetration
+        return max(self.penetration, min(self.impact_depth, 0.1 * float(min(a.min(), b.min()))))
+
     def _judge(self, paths, i, j, lo, touch, back):
         """What the pair (rows i, j) needs: {"act_at": tau, "action": None | "back" | "stop"
-        | "push", "initial", "window", "contact"}: "back" takes the world back to act_at,
-        "stop" the pair's free bodies, "push" carries a free body with the kinematic one.
+        | "push", "initial", "impact", "window", "contact"}: "back" takes the world back to
+        act_at, "stop" the pair's free bodies, "push" carries a free body with the kinematic
+        one; "impact": met inside the window, or another corner of a pair touching as it began.
 
         A pair touching as the window began (pybullet's solver saw it) is acted on only if
         it ends deeper by more than depth_tolerance (the next corner of a turning box
         striking, or a body driven through): if it comes apart first, its next touch is
-        judged as a contact met inside the window; else from the time it presses in by
-        more than a creep (a box pivoting on a corner sinks that corner slowly); one met
-        inside the window, if pybullet would resolve it wrongly (``_core.judge_contact``),
-        from the time it overlaps by ``penetration``."""
+        judged as a contact met inside the window; if the window began at its impact and
+        another corner strikes, from that corner's impact depth, as an impact; else from the
+        time it presses in by more than a creep (a box pivoting on a corner sinks that
+        corner slowly); one met inside the window, if pybullet would resolve it wrongly
+        (``_core.judge_contact``), from the time it overlaps by the impact depth."""
         fa, fb = paths.frame[i], paths.frame[j]
         s_touch = (touch - lo) / (1.0 - lo)
         initial = s_touch == 0.0
@@ -442,17 +472,18 @@ class Contacts:
             # kinematic body cannot be taken back, so the free one is pushed ahead of it.
             action = "push"
         elif paths.stoppable(fa) or paths.stoppable(fb) or (back and (push_a or push_b)):
-            # A pair still pressing in after the world went back to it twice in this step is
-            # one pybullet's solver does not hold: going back again would only repeat that.
-            held = initial and self._presses.get((int(fa), int(fb)), 0) >= PRESSES
-            action = "back" if back and not held else "stop"
+            action = "back" if back else "stop"
         else:
             action = None
-        c, wrong, s_act, normal, parted, again = _core.judge_contact(
-            paths.rows[i], paths.rows[j], lo, s_touch, action is not None, pushing, self.penetration,
-            self.depth_tolerance, CREEP, self.tolerances._core)
+        after_impact = fa in paths.struck and fb in paths.struck
+        c, wrong, s_act, normal, parted, again, fresh = _core.judge_contact(
+            paths.rows[i], paths.rows[j], lo, s_touch, action is not None, pushing, after_impact, self.penetration,
+            self._impact_depth(paths, i, j), self.depth_tolerance, CREEP, self.tolerances._core)
         self.stats.outcomes[Outcome.SEPARATED if c is None else c.outcome] += 1
-        info = {"act_at": touch, "action": None, "initial": initial, "window": (lo, 1.0), "contact": c}
+        # A corner that was apart as the window began striking (``fresh``) is an impact of a
+        # pair touching as it began.
+        info = {"act_at": touch, "action": None, "initial": initial, "impact": not initial or fresh,
+                "window": (lo, 1.0), "contact": c}
         if parted and not pushing:
             # pybullet's solver parted the pair: where it meets again (another corner of a
             # turning box striking) is an impact of its own, judged from its touch.
@@ -467,6 +498,10 @@ class Contacts:
                 s_act = s_touch
         elif not wrong or math.isnan(s_act):  # resolved by pybullet, or never that deep: a graze
             return info
+        elif action == "back" and not info["impact"] and self._presses.get((int(fa), int(fb)), 0) >= PRESSES:
+            # A pair still pressing in after the world went back to it twice in this step is
+            # one pybullet's solver does not hold: going back again would only repeat that.
+            action = "stop"
         info.update(action=action, act_at=lo + s_act * (1.0 - lo), pusher_first=push_a)
         return info
 
@@ -489,10 +524,10 @@ class Contacts:
             paths.track[d].velocity = (v, paths.twist(d)[1])
             return [d]
         changed = [f for f in (fa, fb) if paths.stoppable(f)]
-        whole = info["initial"] and bool(self._clamp_cut((fa, fb)))
+        whole = not info["impact"] and bool(self._clamp_cut((fa, fb)))
         for f in changed:
             paths.stop(f, self._stop_time(paths, f, tau), whole)
-        if not info["initial"]:  # an impact: pybullet's solver meets it as the next step begins
+        if info["impact"]:  # pybullet's solver meets it as the next step begins
             self.struck.update(changed)
         return changed
 

@@ -170,22 +170,22 @@ nb::object paths_window_contact(const BoxPath &a, const BoxPath &b, double lo, d
     return hit_result(window_contact(a, b, lo, hi, tol));
 }
 
-// (contact or None, wrong, depth time, normal at the window's end (3,), parted, again):
+// (contact or None, wrong, depth time, normal at the window's end (3,), parted, again, fresh):
 // judge_contact of rows a, b over the window [lo, 1].
 nb::tuple py_judge_contact(const In<kPathBoxSize> &row_a, const In<kPathBoxSize> &row_b, double lo, double s_touch,
-                           bool judge, bool with_time, double penetration, double depth_tolerance, double creep,
-                           const Tolerances &tol) {
+                           bool judge, bool with_time, bool after_impact, double penetration, double impact_depth,
+                           double depth_tolerance, double creep, const Tolerances &tol) {
     if (!(0.0 <= lo && lo < 1.0 && 0.0 <= s_touch && s_touch <= 1.0))
         throw nb::value_error(("expected 0 <= lo < 1 and 0 <= s_touch <= 1, got lo = " + std::to_string(lo) +
                                ", s_touch = " + std::to_string(s_touch))
                                   .c_str());
     validate(tol);
-    const Judgement j = judge_contact(row_a.data(), row_b.data(), lo, s_touch, judge, with_time, penetration,
-                                      depth_tolerance, creep, tol);
+    const Judgement j = judge_contact(row_a.data(), row_b.data(), lo, s_touch, judge, with_time, after_impact, penetration,
+                                      impact_depth, depth_tolerance, creep, tol);
     double *normal;
     auto n = new_array<3>({3}, normal);
     std::copy(j.normal_at_end.begin(), j.normal_at_end.end(), normal);
-    return nb::make_tuple(hit_result(j.contact), j.wrong, j.depth_time, n, j.parted, j.again);
+    return nb::make_tuple(hit_result(j.contact), j.wrong, j.depth_time, n, j.parted, j.again, j.fresh);
 }
 
 // (touch, act, contact or None, point (3,), normal (3,), initial, pressing, solves):
@@ -255,7 +255,7 @@ void bind_paths(nb::module_ &m) {
     m.def("paths_window_contact", &paths_window_contact, nb::arg("a"), nb::arg("b"), nb::arg("lo"), nb::arg("hi"),
           nb::arg("tolerances"));
     m.def("judge_contact", &py_judge_contact, nb::arg("row_a"), nb::arg("row_b"), nb::arg("lo"), nb::arg("s_touch"),
-          nb::arg("judge"), nb::arg("with_time"), nb::arg("penetration"), nb::arg("depth_tolerance"), nb::arg("creep"),
+          nb::arg("judge"), nb::arg("with_time"), nb::arg("after_impact"), nb::arg("penetration"), nb::arg("impact_depth"), nb::arg("depth_tolerance"), nb::arg("creep"),
           nb::arg("tolerances"));
     m.def("judge_link_contact", &py_judge_link_contact, nb::arg("a"), nb::arg("b"), nb::arg("fit_tolerance"),
           nb::arg("penetration"), nb::arg("creep"), nb::arg("tolerances"));

@@ -85,12 +85,14 @@ double relative_move(const BoxPath &a, const BoxPath &b) {
     return out;
 }
 
-double first_depth(const BoxPath &a, const BoxPath &b, double from, double target, double depth_from) {
-    if (!a.finite() || !b.finite() || !(from >= 0.0 && from <= 1.0) || std::isnan(target)) return kNaN;
+namespace {
+
+// The first tau in (from, 1] at which reaches(tau), for a depth that was depth_from at
+// `from` and is to reach target: first_depth's look-ahead and bisection.
+template <class Reaches>
+double first_reach(const BoxPath &a, const BoxPath &b, double from, double target, double depth_from,
+                   const Reaches &reaches) {
     const double span = 1.0 - from;
-    // Whether the depth at tau reaches target, stopping at the first axis that says no.
-    const auto reaches = [&](double tau) { return path_separation(a, b, tau, nullptr, target) >= target; };
-    if (std::isnan(depth_from)) depth_from = path_depth(a, b, from);
     const double need = target - std::fmax(depth_from, 0.0);
     // A point gets at most twice its travel about the middle from where it was at `from`.
     const double speed = 2.0 * (a.travel(from, 1.0) + b.travel(from, 1.0));
@@ -122,6 +124,122 @@ double first_depth(const BoxPath &a, const BoxPath &b, double from, double targe
         (reaches(mid) ? hi : lo) = mid;
     }
     return hi;
+}
+
+// The corner of box p (pose Xp, half extents hp) numbered k (bit j: + side along its axis
+// j), in the world.
+Vec3 corner_of(const double *Xp, const double *hp, unsigned k) {
+    Vec3 c;
+    for (int i = 0; i < 3; ++i) {
+        c[i] = Xp[4 * i + 3];
+        for (int j = 0; j < 3; ++j) c[i] += Xp[4 * i + j] * ((k >> j & 1u) ? hp[j] : -hp[j]);
+    }
+    return c;
+}
+
+// How deep point c is inside box q (pose Xq, half extents hq): its least distance to a
+// face, negative outside; the face's axis to `axis` if asked.
+double depth_in(const Vec3 &c, const double *Xq, const double *hq, int *axis = nullptr) {
+    const Vec3 d{c[0] - Xq[3], c[1] - Xq[7], c[2] - Xq[11]};
+    double depth = std::numeric_limits<double>::infinity();
+    for (int j = 0; j < 3; ++j) {
+        const double dj = hq[j] - std::fabs(Xq[j] * d[0] + Xq[4 + j] * d[1] + Xq[8 + j] * d[2]);
+        if (dj < depth) {
+            depth = dj;
+            if (axis) *axis = j;
+        }
+    }
+    return depth;
+}
+
+// The deepest of the corners of box p picked by `mask` inside box q (its number to
+// `deepest`), -inf without one. With `apart`, the mask of the corners outside q by more
+// than `gap` is written there.
+double corners_in(const double *Xp, const double *hp, const double *Xq, const double *hq, unsigned mask,
+                  unsigned *deepest = nullptr, double gap = 0.0, unsigned *apart = nullptr) {
+    double most = -std::numeric_limits<double>::infinity();
+    for (unsigned k = 0; k < 8; ++k) {
+        if (!(mask >> k & 1u)) continue;
+        const double depth = depth_in(corner_of(Xp, hp, k), Xq, hq);
+        if (apart && depth < -gap) *apart |= 1u << k;
+        if (depth > most) {
+            most = depth;
+            if (deepest) *deepest = k;
+        }
+    }
+    return most;
+}
+
+}  // namespace
+
+double first_depth(const BoxPath &a, const BoxPath &b, double from, double target, double depth_from) {
+    if (!a.finite() || !b.finite() || !(from >= 0.0 && from <= 1.0) || std::isnan(target)) return kNaN;
+    // Whether the depth at tau reaches target, stopping at the first axis that says no.
+    const auto reaches = [&](double tau) { return path_separation(a, b, tau, nullptr, target) >= target; };
+    if (std::isnan(depth_from)) depth_from = path_depth(a, b, from);
+    return first_reach(a, b, from, target, depth_from, reaches);
+}
+
+CornerStrike first_corner_strike(const BoxPath &a, const BoxPath &b, double from, double gap, double target) {
+    CornerStrike out;
+    if (!a.finite() || !b.finite() || !(from >= 0.0 && from <= 1.0) || std::isnan(target)) return out;
+    const double *ha = a.half_extents(), *hb = b.half_extents();
+    double Xa[16], Xb[16];
+    a.pose(from, Xa);
+    b.pose(from, Xb);
+    unsigned of_a = 0, of_b = 0;  // the corners of a apart from b, and of b from a
+    corners_in(Xa, ha, Xb, hb, 0xffu, nullptr, gap, &of_a);
+    corners_in(Xb, hb, Xa, ha, 0xffu, nullptr, gap, &of_b);
+    if (!of_a && !of_b) return out;
+    unsigned ka = 0, kb = 0;
+    double da = 0.0, db = 0.0;
+    const auto reaches = [&](double tau) {
+        a.pose(tau, Xa);
+        b.pose(tau, Xb);
+        da = corners_in(Xa, ha, Xb, hb, of_a, &ka);
+        db = corners_in(Xb, hb, Xa, ha, of_b, &kb);
+        return da >= target || db >= target;
+    };
+    out.tau = first_reach(a, b, from, target, 0.0, reaches);
+    if (std::isnan(out.tau)) return out;
+    reaches(out.tau);
+    out.of_a = da >= db;
+    out.corner = static_cast<int>(out.of_a ? ka : kb);
+    return out;
+}
+
+Hit corner_contact(const BoxPath &a, const BoxPath &b, const CornerStrike &strike) {
+    Hit hit;
+    if (std::isnan(strike.tau)) return hit;
+    double Xa[16], Xb[16];
+    a.pose(strike.tau, Xa);
+    b.pose(strike.tau, Xb);
+    const double *Xp = strike.of_a ? Xa : Xb, *Xq = strike.of_a ? Xb : Xa;
+    const double *hp = strike.of_a ? a.half_extents() : b.half_extents();
+    const double *hq = strike.of_a ? b.half_extents() : a.half_extents();
+    const auto k = static_cast<unsigned>(strike.corner);
+    const Vec3 c = corner_of(Xp, hp, k);
+    int j = 0;
+    depth_in(c, Xq, hq, &j);
+    const Vec3 axis{Xq[j], Xq[4 + j], Xq[8 + j]};
+    const double side = dot3(axis, Vec3{c[0] - Xq[3], c[1] - Xq[7], c[2] - Xq[11]}) >= 0.0 ? 1.0 : -1.0;
+    // The face's outward normal points at the corner: from A towards B it is that normal
+    // for a corner of B on a face of A, its opposite for a corner of A on a face of B.
+    const double sign = strike.of_a ? -side : side;
+    for (int i = 0; i < 3; ++i) hit.normal[i] = sign * axis[i];
+    hit.point = c;
+    hit.outcome = Outcome::Hit;
+    hit.t = hit.s = strike.tau;
+    // The VO facets (a face of B, a vertex of A) are 6 .. 11, the OV ones 0 .. 5; even: the
+    // normal along the face's axis.
+    hit.facet = (strike.of_a ? 6 : 0) + 2 * j + (sign * side < 0.0 ? 1 : 0);
+    auto &corner = strike.of_a ? hit.feat_a : hit.feat_b;
+    auto &face = strike.of_a ? hit.feat_b : hit.feat_a;
+    for (int i = 0; i < 3; ++i) {
+        corner[i] = static_cast<int8_t>((k >> i & 1u) ? 1 : -1);
+        face[i] = static_cast<int8_t>(i == j ? static_cast<int>(side) : 0);
+    }
+    return hit;
 }
 
 bool presses_in(const BoxPath &a, const BoxPath &b, double penetration, double creep, double depth0) {

@@ -85,6 +85,23 @@ double relative_move(const BoxPath &a, const BoxPath &b);
 double first_depth(const BoxPath &a, const BoxPath &b, double from, double target,
                    double depth_from = std::numeric_limits<double>::quiet_NaN());
 
+// A corner of one box striking the other: when, and which.
+struct CornerStrike {
+    double tau = std::numeric_limits<double>::quiet_NaN();  // NaN: none
+    bool of_a = true;  // a corner of a (into b), else of b (into a)
+    int corner = -1;   // bit j: on the + side of its box's axis j
+};
+
+// The first tau in (from, 1] at which a corner of either box that was outside the other
+// by more than `gap` at `from` is inside it by `target` (its least distance to a face of
+// the other box), found by first_depth's look-ahead and bisection. What it sees is a
+// corner striking, not an edge.
+CornerStrike first_corner_strike(const BoxPath &a, const BoxPath &b, double from, double gap, double target);
+
+// The contact of a corner strike at its time: the corner, the normal of the face it is at
+// (from A towards B), a VO or OV facet and its features. Separated without a strike.
+Hit corner_contact(const BoxPath &a, const BoxPath &b, const CornerStrike &strike);
+
 // Whether two boxes that touch at the start of the step press in during it: their
 // overlap grows past what it was at the start by penetration, and by creep times
 // the smaller half extent of the two (less is the creep of a contact pybullet

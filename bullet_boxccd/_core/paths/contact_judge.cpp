@@ -59,8 +59,8 @@ double first_apart(const BoxPath &a, const BoxPath &b, double gap, double target
 }  // namespace
 
 Judgement judge_contact(const double *row_a, const double *row_b, double lo, double s_touch, bool judge,
-                        bool with_time, double penetration, double depth_tolerance, double creep,
-                        const Tolerances &tol) {
+                        bool with_time, bool after_impact, double penetration, double impact_depth,
+                        double depth_tolerance, double creep, const Tolerances &tol) {
     double wa[pr::kSize], wb[pr::kSize];
     window_row(row_a, lo, 1.0, wa);
     window_row(row_b, lo, 1.0, wb);
@@ -73,7 +73,7 @@ Judgement judge_contact(const double *row_a, const double *row_b, double lo, dou
     const double *ha = a.half_extents(), *hb = b.half_extents();
     const bool initial = s_touch == 0.0;
     const double thin = std::min(*std::min_element(ha, ha + 3), *std::min_element(hb, hb + 3));
-    double target = penetration, start = 0.0;
+    double target = impact_depth, start = 0.0;
     if (initial) {
         start = std::max(path_depth(a, b, 0.0), 0.0);
         target = start + std::max(penetration, std::min(creep * thin, depth_tolerance));
@@ -90,7 +90,8 @@ Judgement judge_contact(const double *row_a, const double *row_b, double lo, dou
         out.wrong = true;
     } else {
         Vec3 axis;
-        if (path_separation(a, b, 1.0, axis.data()) <= 0.0) {
+        const double end = path_separation(a, b, 1.0, axis.data());
+        if (end <= 0.0) {
             out.wrong = !std::isnan(depth_time());  // apart: overlapped that deep on the way
         } else {
             double Xa[16], Xb[16];
@@ -101,13 +102,30 @@ Judgement judge_contact(const double *row_a, const double *row_b, double lo, dou
             // Ending in a shallow overlap on the right side, but past the thinner box's middle
             // on the way: pybullet resolves the pair from the end, never having seen that.
             if (!out.wrong) out.wrong = !std::isnan(first_depth(a, b, s_touch, start + thin));
+            // Met inside the window and ending in a shallow overlap, but deeper on the way (a
+            // turning box's corner that dipped in and is leaving): pybullet resolves the pair
+            // from the end, where the corner no longer approaches, and its impact is lost.
+            if (!out.wrong && !initial) out.wrong = !std::isnan(first_depth(a, b, s_touch, end + penetration));
         }
     }
     if (out.wrong || with_time) depth_time();
     if (out.wrong && initial) {
         const double apart = first_apart(a, b, penetration, target);
         out.parted = !std::isnan(apart);
-        if (out.parted) out.again = first_depth(a, b, apart, 0.0);
+        if (out.parted) {
+            out.again = first_depth(a, b, apart, 0.0);
+        } else if (after_impact) {
+            // A corner that was apart as the window began at the pair's impact striking before
+            // the pair presses in by the target: the next corner of a turning box, an impact of
+            // its own.
+            const CornerStrike struck = first_corner_strike(a, b, 0.0, penetration, impact_depth);
+            out.fresh = !std::isnan(struck.tau) && !(depth_time() < struck.tau);
+            if (out.fresh) {
+                out.depth_time = struck.tau;
+                const CornerStrike touch = first_corner_strike(a, b, 0.0, penetration, 0.0);
+                out.contact = corner_contact(a, b, std::isnan(touch.tau) ? struck : touch);
+            }
+        }
     }
     return out;
 }

@@ -21,7 +21,7 @@ struct Judgement {
     Hit contact;  // the first touch over [s_touch, 1] of the window; Separated: the boxes stayed apart
     bool wrong = false;  // pybullet would resolve the pair wrongly from the window's end
     // The first s in (s_touch, 1] at which the pair's depth reaches the target: the
-    // penetration for a pair met inside the window; for one touching as it began, its
+    // impact depth for a pair met inside the window; for one touching as it began, its
     // depth then plus the larger of the penetration and its creep (creep times the
     // thinner box's smallest half extent, at most depth_tolerance). NaN if never.
     double depth_time = std::numeric_limits<double>::quiet_NaN();
@@ -35,6 +35,12 @@ struct Judgement {
     // then when it touches again (a new contact, an impact; first_depth to 0), NaN if never.
     bool parted = false;
     double again = std::numeric_limits<double>::quiet_NaN();
+    // A pair touching as the window began at its impact (after_impact), judged wrong and
+    // not parted: whether a corner of one box that was apart from the other by more than the
+    // penetration then is inside it by the impact depth before the pair reaches the target
+    // (depth_time is then that time, and contact the corner's at its touch): the next corner
+    // of a turning box striking, an impact rather than a press.
+    bool fresh = false;
 };
 
 // The judgement of the pair of path rows a, b (PathRow) over the window [lo, 1] of the
@@ -42,8 +48,8 @@ struct Judgement {
 // Without `judge`, only the contact. depth_time is found where the pair goes wrong, or
 // always with `with_time`.
 Judgement judge_contact(const double *row_a, const double *row_b, double lo, double s_touch, bool judge,
-                        bool with_time, double penetration, double depth_tolerance, double creep,
-                        const Tolerances &tol);
+                        bool with_time, bool after_impact, double penetration, double impact_depth,
+                        double depth_tolerance, double creep, const Tolerances &tol);
 
 // The judgement of a link box's contact (pybullet_ccd/articulated.py): any two box paths
 // over the whole step. A link's contact that ends merely deep is pybullet's (motors press
