@@ -22,18 +22,18 @@ while it turns down, its contact solved at every fine step, and its far end's sl
 the motion. BoxCCD resolves the first impact at the touch (its spin within a few percent
 of the reference's); the pivot that follows is a contact that began before the step,
 which pybullet takes in whole steps (at 60 Hz the plank turns 0.5 to 1 rad a step, and
-solved once a step, its pivot end leaves the floor), and the far end's slap, which BoxCCD
-resolves at its touch, then often throws the plank up spinning. Plain pybullet over this
+solved once a step, its pivot end leaves the floor), and the far end's slap then at times
+throws the plank up spinning. Plain pybullet over this
 thick floor lands the plank deep inside it in one step (its first spin far off) and
 pushes it out flat, and its slaps likewise. Finer steps (``numSubSteps``) hold the pivot.
 
 Then the same planks dropped pitched and not rolled, so that the far end's bottom edge
 slaps the floor flat, both corners at once: the fastest roll about the long axis after
-it, for plain pybullet, BoxCCD (and with ``penetration=1e-3``), 16 substeps and the
-reference. The world goes back to a 1e-5 m overlap of the slap, where Bullet's box-box
-detector sees one corner of the edge (a roll of a few 1e-4 rad lifts the other): its
-impulse alone rolls the plank; at a fine step, and from a 1e-3 m overlap, both corners
-are seen.
+it, for plain pybullet, BoxCCD (and with ``impact_depth=1e-5``), 16 substeps and the
+reference. BoxCCD resolves the slap from a 1 mm overlap (``impact_depth``), where
+Bullet's box-box detector sees both corners of the edge, as at a fine step; from a 1e-5 m
+overlap it sees one (a roll of a few 1e-4 rad lifts the other), whose impulse alone rolls
+the plank.
 
 Run
 ---
@@ -166,7 +166,7 @@ def main(argv=None):
 
     drops = [(length, pitch, 1.5 + 2 * length) for length in (0.8, 1.0, 1.2, 1.5) for pitch in (0.4, 0.8)]
     flat = {"plain": ("plain", None), "boxccd": ("boxccd", None),
-            "boxccd penetration=1e-3": ("boxccd", {"penetration": 1e-3}), "sub16": ("sub16", None),
+            "boxccd impact_depth=1e-5": ("boxccd", {"impact_depth": 1e-5}), "sub16": ("sub16", None),
             ref_name: ("ref", None)}
     print(f"\nThe same planks (0.8-1.5 m) dropped pitched 0.4 or 0.8 rad and not rolled ({len(drops)} drops): their "
           "far end's edge slaps the floor flat; the fastest roll about the long axis after it\n")
