@@ -232,7 +232,7 @@ Hit corner_contact(const BoxPath &a, const BoxPath &b, const CornerStrike &strik
     hit.t = hit.s = strike.tau;
     // The VO facets (a face of B, a vertex of A) are 6 .. 11, the OV ones 0 .. 5; even: the
     // normal along the face's axis.
-    hit.facet = (strike.of_a ? 6 : 0) + 2 * j + (sign * side < 0.0 ? 1 : 0);
+    hit.facet = (strike.of_a ? 6 : 0) + 2 * j + (sign < 0.0 ? 1 : 0);
     auto &corner = strike.of_a ? hit.feat_a : hit.feat_b;
     auto &face = strike.of_a ? hit.feat_b : hit.feat_a;
     for (int i = 0; i < 3; ++i) {
