@@ -120,7 +120,7 @@ def test_a_touching_pair_that_parts_and_meets_again_says_when():
     midway), and the next edge strikes and ends 3.1 mm in: wrong, parted, and touching
     again where its depth crosses 0 (apart just before)."""
     r = turning_rows(EDGE + 1e-4, 0.003, math.pi / 2)
-    c, wrong, _, _, parted, again, _ = judge(r, s_touch=0.0)
+    c, wrong, _, _, parted, again, *_ = judge(r, s_touch=0.0)
     assert c is not None and wrong and parted
     a, b = _core.RowBoxPath(r[0]), _core.RowBoxPath(r[1])
     assert 0.5 < again < 1.0
@@ -132,14 +132,14 @@ def test_a_touching_pair_that_parts_for_good_is_not_looked_at():
     """The same turn with the centre going 3 mm away instead: the next edge ends 2.9 mm
     short of the wall. Not wrong, so nothing is looked for."""
     r = turning_rows(EDGE + 1e-4, -0.003, math.pi / 2)
-    c, wrong, _, _, parted, again, _ = judge(r, s_touch=0.0)
+    c, wrong, _, _, parted, again, *_ = judge(r, s_touch=0.0)
     assert c is not None and not wrong and not parted and np.isnan(again)
 
 
 def test_a_touching_pair_pressed_through_is_never_apart_first():
     """0.1 mm in at the start and driven through the wall: it ends apart on the far side,
     but reached the pressing depth first: not parted (the press is acted on)."""
-    c, wrong, s, _, parted, again, _ = judge(rows(WALL, (0, 0), CUBE, (-0.1099, 0.5)), s_touch=0.0)
+    c, wrong, s, _, parted, again, *_ = judge(rows(WALL, (0, 0), CUBE, (-0.1099, 0.5)), s_touch=0.0)
     assert c is not None and wrong and not np.isnan(s)
     assert not parted and np.isnan(again)
 

@@ -348,10 +348,8 @@ class Contacts:
                 return self._coalesce(paths, heap, order, i, j, tau_r, events)
             changed = self._act(paths, i, j, tau_r, info, user_moved)
             self._report(paths, i, j, info, bool(changed), events)
-            if info["action"] is None and not info["initial"] and info["contact"] is not None:
-                a, b = _core.RowBoxPath(paths.rows[i]), _core.RowBoxPath(paths.rows[j])
-                if _core.paths_depth(a, b, 1.0) >= 0.0:
-                    self.met.update((int(paths.frame[i]), int(paths.frame[j])))
+            if info["action"] is None and not info["initial"] and info["depth_end"] >= 0.0:
+                self.met.update((int(paths.frame[i]), int(paths.frame[j])))
             budget -= bool(changed)
             again = [sw.pairs[np.flatnonzero((pair_frames == f).any(axis=1))].tolist() for f in changed]
             again = [(i2, j2) for pairs in again for i2, j2 in pairs  # two bodies standing still: nothing more happens
@@ -448,9 +446,10 @@ class Contacts:
 
     def _judge(self, paths, i, j, lo, touch, back):
         """What the pair (rows i, j) needs: {"act_at": tau, "action": None | "back" | "stop"
-        | "push", "initial", "impact", "window", "contact"}: "back" takes the world back to
-        act_at, "stop" the pair's free bodies, "push" carries a free body with the kinematic
-        one; "impact": met inside the window, or another corner of a pair touching as it began.
+        | "push", "initial", "impact", "window", "contact", "depth_end"}: "back" takes the world
+        back to act_at, "stop" the pair's free bodies, "push" carries a free body with the
+        kinematic one; "impact": met inside the window, or another corner of a pair touching as
+        it began; "depth_end": the pair's depth at the step's end where judged (else NaN).
 
         A pair touching as the window began (pybullet's solver saw it) is acted on only if
         it ends deeper by more than depth_tolerance (the next corner of a turning box
@@ -476,14 +475,14 @@ class Contacts:
         else:
             action = None
         after_impact = fa in paths.struck and fb in paths.struck
-        c, wrong, s_act, normal, parted, again, fresh = _core.judge_contact(
+        c, wrong, s_act, normal, parted, again, fresh, depth_end = _core.judge_contact(
             paths.rows[i], paths.rows[j], lo, s_touch, action is not None, pushing, after_impact, self.penetration,
             self._impact_depth(paths, i, j), self.depth_tolerance, CREEP, self.tolerances._core)
         self.stats.outcomes[Outcome.SEPARATED if c is None else c.outcome] += 1
         # A corner that was apart as the window began striking (``fresh``) is an impact of a
         # pair touching as it began.
         info = {"act_at": touch, "action": None, "initial": initial, "impact": not initial or fresh,
-                "window": (lo, 1.0), "contact": c}
+                "window": (lo, 1.0), "contact": c, "depth_end": depth_end}
         if parted and not pushing:
             # pybullet's solver parted the pair: where it meets again (another corner of a
             # turning box striking) is an impact of its own, judged from its touch.

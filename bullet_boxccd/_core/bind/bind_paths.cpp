@@ -170,7 +170,7 @@ nb::object paths_window_contact(const BoxPath &a, const BoxPath &b, double lo, d
     return hit_result(window_contact(a, b, lo, hi, tol));
 }
 
-// (contact or None, wrong, depth time, normal at the window's end (3,), parted, again, fresh):
+// (contact or None, wrong, depth time, normal at the window's end (3,), parted, again, fresh, depth at the end):
 // judge_contact of rows a, b over the window [lo, 1].
 nb::tuple py_judge_contact(const In<kPathBoxSize> &row_a, const In<kPathBoxSize> &row_b, double lo, double s_touch,
                            bool judge, bool with_time, bool after_impact, double penetration, double impact_depth,
@@ -185,7 +185,7 @@ nb::tuple py_judge_contact(const In<kPathBoxSize> &row_a, const In<kPathBoxSize>
     double *normal;
     auto n = new_array<3>({3}, normal);
     std::copy(j.normal_at_end.begin(), j.normal_at_end.end(), normal);
-    return nb::make_tuple(hit_result(j.contact), j.wrong, j.depth_time, n, j.parted, j.again, j.fresh);
+    return nb::make_tuple(hit_result(j.contact), j.wrong, j.depth_time, n, j.parted, j.again, j.fresh, j.depth_end);
 }
 
 // (touch, act, contact or None, point (3,), normal (3,), initial, pressing, solves):

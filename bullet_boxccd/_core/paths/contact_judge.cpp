@@ -85,12 +85,11 @@ Judgement judge_contact(const double *row_a, const double *row_b, double lo, dou
         return out.depth_time;
     };
     const Vec3 &n = out.normal_at_end;
-    if (path_depth(a, b, 1.0) - start > depth_tolerance ||
-        !(std::isfinite(n[0]) && std::isfinite(n[1]) && std::isfinite(n[2]))) {
+    Vec3 axis;
+    const double end = out.depth_end = path_separation(a, b, 1.0, axis.data());
+    if (end - start > depth_tolerance || !(std::isfinite(n[0]) && std::isfinite(n[1]) && std::isfinite(n[2]))) {
         out.wrong = true;
     } else {
-        Vec3 axis;
-        const double end = path_separation(a, b, 1.0, axis.data());
         if (end <= 0.0) {
             out.wrong = !std::isnan(depth_time());  // apart: overlapped that deep on the way
         } else {

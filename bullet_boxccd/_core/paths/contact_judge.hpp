@@ -25,6 +25,8 @@ struct Judgement {
     // depth then plus the larger of the penetration and its creep (creep times the
     // thinner box's smallest half extent, at most depth_tolerance). NaN if never.
     double depth_time = std::numeric_limits<double>::quiet_NaN();
+    // The pair's depth at the window's end (negative: apart); NaN where it is not judged.
+    double depth_end = std::numeric_limits<double>::quiet_NaN();
     // The contact's normal turned to the window's end with the body whose face it is (for
     // an edge-edge contact, the one that turns less); NaN without a contact or a facet.
     Vec3 normal_at_end{std::numeric_limits<double>::quiet_NaN(), std::numeric_limits<double>::quiet_NaN(),
