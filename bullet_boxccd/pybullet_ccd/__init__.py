@@ -170,6 +170,7 @@ class BoxCCD:
         self._quiet, self._epoch = False, -1  # whether a step may skip every check (see step)
         self._known = False  # whether the frame-state rows hold the velocities the next step starts from
         self._partial = False  # whether the world is set for a partial step (its time step and contact ERP)
+        self._spent = 0  # partial steps and pieces taken in the current step (at most _partial_steps)
         # Frames of the contact the world was taken back to as the partial step began (acted),
         # and those of them struck by an impact then (its impulse acts whole at that start);
         # the frames a step stopped at an impact, struck as the next step begins.
@@ -315,6 +316,7 @@ class BoxCCD:
 
     def _step_once(self) -> list:
         struck, self._struck_next = self._struck_next, set()
+        self._spent = 0
         if (self._quiet and last_serial() == self._epoch
                 and raw.getNumBodies(physicsClientId=self.cid) == self.world.count):
             # Nothing changed in the world since the last step.
@@ -414,7 +416,9 @@ class BoxCCD:
                 self._turning.discard(f)
             elif turns > pieces and raw.getContactPoints(keys[f][0], linkIndexA=keys[f][1], physicsClientId=self.cid):
                 pieces = math.ceil(turns - 1e-9)
-        self.stats.pieces += n * (pieces - 1)
+        pieces = min(pieces, 1 + self._partial_steps // n)
+        self._spent = n * (pieces - 1)
+        self.stats.pieces += self._spent
         return n * pieces
 
     def _substepped(self, struck, step, n):
@@ -506,11 +510,11 @@ class BoxCCD:
                     self._state.begin(self._known)
                     self._simulate(impacts)
                     self._state.read_velocities()
-                    if 0 < k <= self._partial_steps:  # (not the very last piece: see below)
+                    if 0 < k and self._spent <= self._partial_steps:  # (not the very last piece: see below)
                         piece = self._within_clamp(piece, h, impacts)
                 t_sim = time.perf_counter()
                 self.stats.seconds["step"] += t_sim - t_start
-                back = k < self._partial_steps
+                back = self._spent < self._partial_steps
                 found, tau = self._sweep(piece, t_sim, user_moved, back, stepped, fast, sw)
                 stepped, fast, sw = False, None, None
                 impacts = self.contacts.impacts if back and tau < 1.0 else []  # (the world went back to them)
@@ -535,8 +539,9 @@ class BoxCCD:
                     self._pressed_again = False
                 else:
                     hold = min(2.0 * hold, h)
-                piece = self._piece(h - elapsed, hold) if k < self._partial_steps else h - elapsed
+                piece = self._piece(h - elapsed, hold) if back else h - elapsed
                 self.stats.partial_steps += 1
+                self._spent += 1
                 self._take(piece, h)
                 t_start = time.perf_counter()
                 k += 1

@@ -122,7 +122,19 @@ class _Paths:
         self.track = {}  # in the order of the frames' first rows (the order pybullet is given their bodies)
         for r, f in enumerate(self.frame.tolist()):
             self.track.setdefault(f, _Track([])).rows.append(r)
+        # The pairs' indices grouped by frame (each pair under both its frames), for pairs_of.
+        pf = self.frame[sw.pairs]
+        two = pf[:, 0] != pf[:, 1]
+        keys = np.concatenate((pf[:, 0], pf[two, 1]))
+        index = np.concatenate((np.arange(len(pf)), np.flatnonzero(two)))
+        order = np.lexsort((index, keys))
+        self._pair_frame, self._pair_index = keys[order], index[order]
         self.kinematic = kinematic
+
+    def pairs_of(self, f):
+        """Indices of the pairs with a box of frame f, ascending."""
+        lo, hi = np.searchsorted(self._pair_frame, [f, f + 1])
+        return self._pair_index[lo:hi]
 
     def driver(self, f):
         """The kinematic frame that moves f (f itself, or its carrier's driver)."""
@@ -306,7 +318,6 @@ class Contacts:
         """Take the contacts in time order up to ``horizon``, acting on those pybullet would
         resolve wrongly, and sweep again the pairs of every body whose path changed. With
         ``back``, stop at the first one and return its time; else 1."""
-        pair_frames = paths.frame[sw.pairs]
         # The sweep's first touches are queued at their touch and judged when they come up
         # (a contact's action is never before its touch): those after the step's first
         # action are not judged at all when the world goes back there.
@@ -351,7 +362,7 @@ class Contacts:
             if info["action"] is None and not info["initial"] and info["depth_end"] >= 0.0:
                 self.met.update((int(paths.frame[i]), int(paths.frame[j])))
             budget -= bool(changed)
-            again = [sw.pairs[np.flatnonzero((pair_frames == f).any(axis=1))].tolist() for f in changed]
+            again = [sw.pairs[paths.pairs_of(f)].tolist() for f in changed]
             again = [(i2, j2) for pairs in again for i2, j2 in pairs  # two bodies standing still: nothing more happens
                      if paths.status(paths.frame[i2]) != _STOPPED or paths.status(paths.frame[j2]) != _STOPPED]
             touches = self._first_touches(paths, again, tau_r)
@@ -537,7 +548,7 @@ class Contacts:
         the step's end, which pybullet resolves; stopped on the way, it would stay in): then
         the first time it is that deep."""
         rows = paths.track[f].rows
-        for r, r2 in paths.pairs[np.isin(paths.pairs, rows).any(axis=1)].tolist():
+        for r, r2 in paths.pairs[paths.pairs_of(f)].tolist():
             if r not in rows:
                 r, r2 = r2, r
             if paths.frame[r2] == f:
