@@ -460,11 +460,12 @@ def test_a_box_cut_to_the_velocity_clamp_on_the_floor_slides_on_and_the_plate_be
 
 
 # ------------------------------------------------- a struck box turning on the floor
-def tray_drop(cid, seed, use, fine=1):
+def tray_drop(cid, seed, use, fine=1, after_step=None, **knobs):
     """Eight of pybullet_data's cube_small, jenga and lego in turn, thrown at 10-40 m/s
     within 40 deg of straight down at the floor of a fixed tray/traybox.urdf, turned at
     random, spinning ~N(0, 10) rad/s, arriving 2 to 6 steps of 1/60 s in. Returns each
-    body's speed after 40 steps, and the BoxCCD that stepped it (None for pybullet alone)."""
+    body's speed after 40 steps, and the BoxCCD that stepped it (None for pybullet alone),
+    made with ``knobs`` and given to ``after_step`` after each of its steps."""
     dt = 1 / 60
     reset(cid, -9.81, dt / fine)
     rng = np.random.default_rng(1000 * seed + 7)
@@ -481,10 +482,12 @@ def tray_drop(cid, seed, use, fine=1):
         p.changeDynamics(b, -1, maxJointVelocity=1e4, physicsClientId=cid)
         p.resetBaseVelocity(b, (speed * d).tolist(), rng.normal(0, 10, 3).tolist(), physicsClientId=cid)
         bodies.append(b)
-    ccd = BoxCCD(cid) if use else None
+    ccd = BoxCCD(cid, **knobs) if use else None
     for _ in range(40):
         if ccd:
             ccd.step()
+            if after_step:
+                after_step(ccd)
         else:
             for _ in range(fine):
                 p.stepSimulation(physicsClientId=cid)
@@ -504,3 +507,20 @@ def test_a_box_an_impact_set_turning_on_the_floor_is_not_spun_up(cid, seed):
         tray_drop(cid, seed, True)
     assert np.all(mine <= 2 * np.maximum(plain, ref) + 2), (mine, plain, ref)
     assert ccd.stats.pieces > 0
+
+
+@pytest.mark.parametrize("budget", [0, 3])
+def test_the_pieces_of_a_step_come_out_of_its_partial_steps(cid, budget):
+    """The pieces a step is taken in while a body an impact set turning touches something
+    are partial steps: with max_partial_steps = n, a step adds at most n stepSimulations
+    for them (these drops would take up to dozens), and with 0 it adds none, pieces or
+    partial steps (a piece taken again shorter for a spin is the same partial step)."""
+    added = []
+
+    def count(ccd):
+        added.append(ccd.stats.pieces - sum(added))
+
+    _, ccd = tray_drop(cid, 17, True, after_step=count, max_partial_steps=budget)
+    assert max(added) == budget, added
+    if budget == 0:
+        assert ccd.stats.partial_steps == 0 and ccd.stats.rewinds > 0

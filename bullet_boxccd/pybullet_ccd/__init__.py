@@ -109,7 +109,8 @@ class BoxCCD:
         Bodies whose links collide with each other.
     max_partial_steps : int or None
         Partial steps (the rest of the step simulated again from a contact, or a piece of
-        it under ``max_turn``) after which a contact no longer takes the world back: the
+        it under ``max_turn``, the step's pieces while a body an impact set turning touches
+        something included) after which a contact no longer takes the world back: the
         rest goes to the step's end in one piece, and the bodies of each remaining contact
         go back to it on their own, with the velocities they had there (pybullet resolves
         it as the next step begins). At least 0. Default None: as many as step 256 moving
@@ -404,8 +405,9 @@ class BoxCCD:
     def _step_pieces(self):
         """The stepSimulations the user's step is taken in: its numSubSteps, each split evenly
         so that no free body an impact set turning (``_turning``) that touches something as
-        the step begins turns by more than its limit in one (``_turn_limits``). A body that
-        turns by less is let go."""
+        the step begins turns by more than its limit in one (``_turn_limits``), in at most
+        the step's partial steps (``_spent``: what is left of them is the budget of its
+        contacts). A body that turns by less is let go."""
         n = self._substeps
         if not self._turning:
             return n
