@@ -1356,3 +1356,35 @@ def test_a_force_applied_every_step_acts_once_a_step_through_quiet_steps_and_par
     assert partial_ref == 0 and partial >= 1 and x_bullet < 5  # the bullet struck the wall and came back
     assert np.allclose(v_ref, [2.0 * 40 * DT, 0, 0], rtol=1e-9)  # F t / m, pybullet alone
     np.testing.assert_allclose(v, v_ref, rtol=1e-6, atol=1e-9)
+
+
+def test_a_moving_plane_meeting_a_box_made_static_in_flight_steps(cid):
+    """A call sequence found by fuzzing pybullet's API: the plane of mjcf/hello_mjcf.xml given
+    a velocity, boxes made in batches, and a box far out made static (mass 0) while it falls,
+    so that two bodies BoxCCD moves kinematically meet. It steps on, with true warnings only
+    (the spinning plane's velocity clamp)."""
+    reset(cid, -9.81)
+    box(cid, [5, 5, 0.005], [0, 0, -0.005], mass=0.0)
+    box(cid, [0.004, 5, 2], [1.5, 0, 2], mass=0.0)
+    plane = p.loadMJCF(os.path.join(pybullet_data.getDataPath(), "mjcf/hello_mjcf.xml"), physicsClientId=cid)[0]
+    p.resetBaseVelocity(plane, [-72.7, -137.0, -106.6], [-210.8, 606.3, -67.3], physicsClientId=cid)
+    ccd = BoxCCD(cid)
+    ccd.step()
+    for row in ([[0.92, 0.33, 0.5], [-0.84, 0.47, 0.7], [0.65, 0.32, 0.9]],
+                [[0.30, -0.96, 0.5], [0.07, -0.33, 0.7], [-0.68, 0.28, 0.9]]):
+        col = p.createCollisionShape(p.GEOM_BOX, halfExtents=[0.05] * 3, physicsClientId=cid)
+        p.createMultiBody(1.0, col, batchPositions=row, physicsClientId=cid)
+        for _ in range(2):
+            ccd.step()
+    box(cid, [0.00097, 0.00134, 0.00151], [0.58, -0.78, 0.92], mass=2.94,
+        orn=[-0.55406, -0.00304, -0.06894, 0.82961])
+    far = box(cid, [0.0435, 0.1252, 0.0210], [10000.5, 0.93, 1.86], mass=6.04,
+              orn=[0.0638, 0.6072, 0.0456, 0.7907])
+    for _ in range(8):
+        ccd.step()
+    p.changeDynamics(far, -1, mass=0.0, physicsClientId=cid)
+    with warnings.catch_warnings(record=True) as said:
+        warnings.simplefilter("always")
+        for _ in range(3):
+            ccd.step()
+    assert all("velocity clamp" in str(w.message) for w in said), [str(w.message) for w in said]

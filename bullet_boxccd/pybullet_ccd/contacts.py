@@ -152,7 +152,7 @@ class _Paths:
 
     def free(self, f) -> bool:
         """A free body that the plugin may stop or push (not carried already)."""
-        return self.tables.kind[f] == FREE and f not in self.kinematic and self.status(f) != _CARRIED
+        return bool(self.tables.kind[f] == FREE) and f not in self.kinematic and self.status(f) != _CARRIED
 
     def stoppable(self, f) -> bool:
         return self.free(f) and self.status(f) == _MOVING
