@@ -93,6 +93,7 @@ class Journal:
     renewed: dict = field(default_factory=dict)  # body -> serial of its latest creation or removal
     last_body: int = 0  # the latest serial in ``bodies``
     created: set = field(default_factory=set)  # bodies made through the wrapped functions (provenance)
+    removed: set = field(default_factory=set)  # ids removed through removeBody and not made again since
     params: int = 0  # fixedTimeStep / numSubSteps / gravity changed
     param_values: dict = field(default_factory=dict)  # those settings as last set (set again alike: no change)
     num_substeps: int = 0  # as last set through setPhysicsEngineParameter (0: never set)
@@ -383,6 +384,7 @@ def _on_create(cid, result):
     for b in _ids(result):
         j.bodies[b] = s
         j.created.add(b)
+        j.removed.discard(b)
         _forget(j, b)
     return j
 
@@ -391,6 +393,7 @@ def _remove_body(cid, a, result):
     b = int(a["bodyUniqueId"])
     j = _structure(cid, b)
     j.created.discard(b)
+    j.removed.add(b)
     _forget(j, b)
     j.filters = next(_serial)  # pair rules stay: pybullet keys them by id, and a new body may reuse it
 
@@ -448,9 +451,26 @@ def shape_type(j, index):
         return None
 
 
+def _batch_ids(cid, j, result):
+    """The ids a ``createMultiBody(batchPositions=...)`` made. pybullet 3.2.x returns the last
+    one and those below it, but makes the first ones under ids freed by removeBody: it then
+    returns ids of bodies that were there before (whose records must stay: reading an MJCF
+    body's shapes through getCollisionShapeData kills the process) and not the reused ones.
+    The reused ones are read from the server's list (``syncBodyInfo``)."""
+    ids = _ids(result)
+    if not j.removed:
+        return result
+    raw.syncBodyInfo(physicsClientId=cid)
+    listed = {raw.getBodyUniqueId(i, physicsClientId=cid) for i in range(raw.getNumBodies(physicsClientId=cid))}
+    reused = sorted(j.removed & listed)[:len(ids)]
+    return tuple(reused + sorted(ids)[len(reused):])
+
+
 def _create_multibody(cid, a, result):
-    j = _on_create(cid, result)
     named = _named(a)
+    if named.get("batchPositions") is not None:
+        result = _batch_ids(cid, journal(cid), result)
+    j = _on_create(cid, result)
     _note_maximal(j, "createMultiBody", named, result)
     _note_self_collision(j, named.get("flags"), result)
     # The geometry type of each link's shape, where the journal made it: pybullet prints an
