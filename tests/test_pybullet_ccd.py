@@ -202,6 +202,34 @@ def test_spinning_plank_never_passes_through(cid, radius):
     assert plain > 5
 
 
+@pytest.mark.parametrize("speed", [120.0, 125.0, 130.0])
+def test_a_spinning_rod_already_touching_a_wall_does_not_pass_through_it(cid, speed):
+    """A 1.34 m rod spinning at 1,143 rad/s that begins a 1/120 s step 0.4 mm into a 7.6 mm
+    wall (as a step may leave it) and moves into it at 120-130 m/s leaves the contact as
+    the step begins and crosses the wall between two of the depth search's look-ahead
+    samples: BoxCCD finds that crossing and keeps the rod on its side (plain pybullet and
+    pybullet at a 64 times finer step: through, and on its side)."""
+    def run(fine, use):
+        reset(cid)
+        p.setTimeStep(1 / 120 / fine, physicsClientId=cid)
+        wall = box(cid, [0.0038007, 50, 50], [-4.284878727558222, 0, 0], mass=0.0)
+        rod = box(cid, [0.0076, 0.0228, 0.6713], [-3.9618619828849764, 2.1698349102806906, 3.6885533146294764],
+                  mass=1.2126, orn=[-0.506136674039897, -0.23351341059765682, 0.07530257597318037, 0.8268171964314026])
+        p.changeDynamics(wall, -1, restitution=1.0, physicsClientId=cid)
+        p.changeDynamics(rod, -1, restitution=0.3, lateralFriction=0.5, maxJointVelocity=2000, linearDamping=0,
+                         angularDamping=0, physicsClientId=cid)
+        p.resetBaseVelocity(rod, [-speed, 0, 0], [1000.0, -302.5573974024994, 456.0051219791426], physicsClientId=cid)
+        if use:
+            BoxCCD(cid).step()
+        else:
+            for _ in range(fine):
+                p.stepSimulation(physicsClientId=cid)
+        return com_x(cid, rod) - p.getBasePositionAndOrientation(wall, physicsClientId=cid)[0][0]
+
+    assert run(1, False) < 0.0 < run(64, False)  # (the rod's centre starts on the wall's + side)
+    assert run(1, True) > 0.0
+
+
 # -------------------------------------------------- 3. two fast boxes, momentum
 @pytest.mark.parametrize("angle_deg", [0.0, 35.0])
 def test_two_fast_boxes_collide_and_conserve_momentum(cid, angle_deg):

@@ -87,11 +87,16 @@ double relative_move(const BoxPath &a, const BoxPath &b) {
 
 namespace {
 
-// The first tau in (from, 1] at which reaches(tau), for a depth that was depth_from at
-// `from` and is to reach target: first_depth's look-ahead and bisection.
-template <class Reaches>
+// The first tau in (from, 1] at which depth(tau) >= target, for a depth that was
+// depth_from at `from`: first_depth's look-ahead and bisection. depth(tau) may stop early
+// below the target with any value at least the true depth. Between two samples below the
+// target the depth can rise no faster than the boxes' points move (`rate` a unit of tau
+// from either end); a gap where that bound reaches the target is split until it cannot
+// (a fast box passing through a thin wall between two samples, out again at the second),
+// with at most kGapSamples depth evaluations a gap.
+template <class Depth>
 double first_reach(const BoxPath &a, const BoxPath &b, double from, double target, double depth_from,
-                   const Reaches &reaches) {
+                   const Depth &depth) {
     const double span = 1.0 - from;
     const double need = target - std::fmax(depth_from, 0.0);
     // A point gets at most twice its travel about the middle from where it was at `from`.
@@ -107,21 +112,54 @@ double first_reach(const BoxPath &a, const BoxPath &b, double from, double targe
         while (k0 < kDepthLookAhead && !(std::ldexp(speed, -(k0 + 1)) < need)) ++k0;  // the division's rounding
         while (k0 > 0 && std::ldexp(speed, -k0) < need) --k0;
     }
+    const double rate = speed / span;
+    // The first sample in the gap (l, r) (depths dl, dr below the target) at which the
+    // depth reaches the target, left-first; the sample before it to `before`.
+    const auto in_gap = [&](double l, double dl, double r, double dr, double &before) {
+        int budget = kGapSamples;
+        struct Gap {
+            double l, dl, r, dr;
+        };
+        Gap stack[2 * kMaxDepthHalvings];
+        int n = 0;
+        stack[n++] = {l, dl, r, dr};
+        while (n > 0) {
+            const Gap g = stack[--n];
+            if (0.5 * (g.dl + g.dr + rate * (g.r - g.l)) < target || g.r - g.l <= kDepthWidth || budget <= 0) continue;
+            const double m = 0.5 * (g.l + g.r);
+            if (!(m > g.l && m < g.r)) continue;
+            --budget;
+            const double dm = depth(m);
+            if (dm >= target) {
+                before = g.l;
+                return m;
+            }
+            if (n + 2 > int(std::size(stack))) continue;
+            stack[n++] = {m, dm, g.r, g.dr};
+            stack[n++] = {g.l, g.dl, m, dm};
+        }
+        return kNaN;
+    };
     double lo = k0 < kDepthLookAhead ? from + std::ldexp(span, -(k0 + 1)) : from, hi = kNaN;
+    double last = from, d_last = std::isnan(depth_from) ? target : depth_from;  // (unknown: assume the worst)
     for (double step = std::ldexp(span, -k0);; step *= 2.0) {  // 2^-k of the rest of the step, k = k0 .. 0
         const double t = from + step;
-        if (reaches(t)) {
+        const double d = depth(t);
+        if (d >= target) {
             hi = t;
             break;
         }
-        lo = t;
+        hi = in_gap(std::fmax(last, lo), last < lo ? d_last + rate * (lo - last) : d_last, t, d, lo);
+        if (!std::isnan(hi)) break;
+        lo = last = t;
+        d_last = d;
         if (!(step < span)) break;
     }
     if (std::isnan(hi)) return hi;
     for (int it = 0; it < kMaxDepthHalvings && hi - lo > kDepthWidth; ++it) {
         const double mid = 0.5 * (lo + hi);
         if (mid <= lo || mid >= hi) break;
-        (reaches(mid) ? hi : lo) = mid;
+        (depth(mid) >= target ? hi : lo) = mid;
     }
     return hi;
 }
@@ -174,10 +212,10 @@ double corners_in(const double *Xp, const double *hp, const double *Xq, const do
 
 double first_depth(const BoxPath &a, const BoxPath &b, double from, double target, double depth_from) {
     if (!a.finite() || !b.finite() || !(from >= 0.0 && from <= 1.0) || std::isnan(target)) return kNaN;
-    // Whether the depth at tau reaches target, stopping at the first axis that says no.
-    const auto reaches = [&](double tau) { return path_separation(a, b, tau, nullptr, target) >= target; };
+    // The depth at tau, stopping below the target at the first axis that says so.
+    const auto depth = [&](double tau) { return path_separation(a, b, tau, nullptr, target); };
     if (std::isnan(depth_from)) depth_from = path_depth(a, b, from);
-    return first_reach(a, b, from, target, depth_from, reaches);
+    return first_reach(a, b, from, target, depth_from, depth);
 }
 
 CornerStrike first_corner_strike(const BoxPath &a, const BoxPath &b, double from, double gap, double target) {
@@ -193,16 +231,16 @@ CornerStrike first_corner_strike(const BoxPath &a, const BoxPath &b, double from
     if (!of_a && !of_b) return out;
     unsigned ka = 0, kb = 0;
     double da = 0.0, db = 0.0;
-    const auto reaches = [&](double tau) {
+    const auto depth = [&](double tau) {
         a.pose(tau, Xa);
         b.pose(tau, Xb);
         da = corners_in(Xa, ha, Xb, hb, of_a, &ka);
         db = corners_in(Xb, hb, Xa, ha, of_b, &kb);
-        return da >= target || db >= target;
+        return std::fmax(da, db);
     };
-    out.tau = first_reach(a, b, from, target, 0.0, reaches);
+    out.tau = first_reach(a, b, from, target, 0.0, depth);
     if (std::isnan(out.tau)) return out;
-    reaches(out.tau);
+    depth(out.tau);
     out.of_a = da >= db;
     out.corner = static_cast<int>(out.of_a ? ka : kb);
     return out;

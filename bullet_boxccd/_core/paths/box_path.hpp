@@ -77,11 +77,12 @@ double relative_move(const BoxPath &a, const BoxPath &b);
 // The first tau in (from, 1] at which the boxes' depth reaches `target`
 // (path_depth >= target), NaN if it does not. A geometric look-ahead (offsets
 // 2^-k of the rest of the step, k = kDepthLookAhead .. 0) finds the first sample
-// past the target even for a fast pass through a thin wall; bisection then
-// brackets the crossing to kDepthWidth and returns its upper end. Samples nearer
-// `from` than the boxes' travel lets the depth grow to the target are skipped
-// (the overlap depth moves no faster than the boxes' points). depth_from: the
-// depth at `from`, if known (NaN: computed).
+// past the target even for a fast pass through a thin wall; between two samples
+// below it, the gaps where the depth could have risen to the target and fallen back
+// (it moves no faster than the boxes' points) are split until it could not, or it
+// did; bisection then brackets the crossing to kDepthWidth and returns its upper
+// end. Samples nearer `from` than the boxes' travel lets the depth grow to the
+// target are skipped. depth_from: the depth at `from`, if known (NaN: computed).
 double first_depth(const BoxPath &a, const BoxPath &b, double from, double target,
                    double depth_from = std::numeric_limits<double>::quiet_NaN());
 

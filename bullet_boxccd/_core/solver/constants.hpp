@@ -119,6 +119,9 @@ constexpr int kMaxDepthHalvings = 200;
 // The depth look-ahead tries offsets 2^-k of the rest of the step, k = 48..0:
 // 2^-48 of a step is below any contact's resolution.
 constexpr int kDepthLookAhead = 48;
+// Between two look-ahead samples below the target, at most this many more depth
+// evaluations look for a depth that rose past it and fell back (first_depth).
+constexpr int kGapSamples = 32;
 // A contact window on the step path shorter than this fraction of the step is
 // widened to it (the refit needs a window that double precision can split), and
 // the refit's boxes grow by this fraction of their reach radius so that the
