@@ -119,6 +119,9 @@ class _Paths:
         self.box = sw.boxes
         self.frame = tables.box_frame[sw.boxes]
         self.pairs = sw.pairs
+        half = tables.half[self.box]
+        self.thin = half.min(axis=1).tolist()  # each row's box's smallest half extent
+        self.plane = (half.max(axis=1) >= PLANE_HALF).tolist()  # each row's box stands for a plane
         self.track = {}  # in the order of the frames' first rows (the order pybullet is given their bodies)
         for r, f in enumerate(self.frame.tolist()):
             self.track.setdefault(f, _Track([])).rows.append(r)
@@ -422,8 +425,7 @@ class Contacts:
     def _depth_time(self, paths, i, j, tau):
         """When the boxes of rows (i, j) on their paths overlap by COALESCE of the thinner one's
         half extent, from tau on; 1 if never."""
-        half = paths.tables.half
-        depth = COALESCE * float(min(half[paths.box[i]].min(), half[paths.box[j]].min()))
+        depth = COALESCE * min(paths.thin[i], paths.thin[j])
         t = _core.paths_first_depth(_core.RowBoxPath(paths.rows[i]), _core.RowBoxPath(paths.rows[j]), tau, depth)
         return 1.0 if math.isnan(t) else t
 
@@ -450,10 +452,9 @@ class Contacts:
         """The overlap at which an impact of rows (i, j) is resolved: ``impact_depth``, at most a
         tenth of the thinner box's smallest half extent, at least ``penetration``; against a
         plane ``penetration`` (Bullet's plane contact takes one point, however deep)."""
-        a, b = paths.tables.half[paths.box[i]], paths.tables.half[paths.box[j]]
-        if max(a.max(), b.max()) >= PLANE_HALF:
+        if paths.plane[i] or paths.plane[j]:
             return self.penetration
-        return max(self.penetration, min(self.impact_depth, 0.1 * float(min(a.min(), b.min()))))
+        return max(self.penetration, min(self.impact_depth, 0.1 * min(paths.thin[i], paths.thin[j])))
 
     def _judge(self, paths, i, j, lo, touch, back):
         """What the pair (rows i, j) needs: {"act_at": tau, "action": None | "back" | "stop"

@@ -180,8 +180,8 @@ nb::tuple py_judge_contact(const In<kPathBoxSize> &row_a, const In<kPathBoxSize>
                                ", s_touch = " + std::to_string(s_touch))
                                   .c_str());
     validate(tol);
-    const Judgement j = judge_contact(row_a.data(), row_b.data(), lo, s_touch, judge, with_time, after_impact, penetration,
-                                      impact_depth, depth_tolerance, creep, tol);
+    const Judgement j = judge_contact(row_a.data(), row_b.data(), lo, s_touch, judge, with_time, after_impact,
+                                      penetration, impact_depth, depth_tolerance, creep, tol);
     double *normal;
     auto n = new_array<3>({3}, normal);
     std::copy(j.normal_at_end.begin(), j.normal_at_end.end(), normal);
@@ -255,8 +255,8 @@ void bind_paths(nb::module_ &m) {
     m.def("paths_window_contact", &paths_window_contact, nb::arg("a"), nb::arg("b"), nb::arg("lo"), nb::arg("hi"),
           nb::arg("tolerances"));
     m.def("judge_contact", &py_judge_contact, nb::arg("row_a"), nb::arg("row_b"), nb::arg("lo"), nb::arg("s_touch"),
-          nb::arg("judge"), nb::arg("with_time"), nb::arg("after_impact"), nb::arg("penetration"), nb::arg("impact_depth"), nb::arg("depth_tolerance"), nb::arg("creep"),
-          nb::arg("tolerances"));
+          nb::arg("judge"), nb::arg("with_time"), nb::arg("after_impact"), nb::arg("penetration"),
+          nb::arg("impact_depth"), nb::arg("depth_tolerance"), nb::arg("creep"), nb::arg("tolerances"));
     m.def("judge_link_contact", &py_judge_link_contact, nb::arg("a"), nb::arg("b"), nb::arg("fit_tolerance"),
           nb::arg("penetration"), nb::arg("creep"), nb::arg("tolerances"));
     m.def("paths_depth", &paths_depth, nb::arg("a"), nb::arg("b"), nb::arg("tau"));
