@@ -742,6 +742,27 @@ def test_a_fast_body_with_no_box_is_named_once(cid, shape):
             assert x_of(cid, body) > 0.0  # pybullet let it through, as the warning says
 
 
+def test_a_fast_compound_with_no_box_is_sized_by_its_smallest_shape(cid):
+    """A free compound of two 1 cm spheres 52 cm apart on a diagonal (its bounding box 32 cm
+    thick) is named when it moves 5 cm a step, more than a sphere's radius, and not at 4 mm
+    a step: its size is its shapes', not its bounding box's."""
+    for speed, named in ((1.0, False), (12.0, True)):
+        reset(cid)
+        box(cid, [0.001, 1, 1], [0, 0, 0], mass=0.0)
+        spheres = p.createCollisionShapeArray([p.GEOM_SPHERE] * 2, radii=[0.01] * 2,
+                                              collisionFramePositions=[[-0.15] * 3, [0.15] * 3], physicsClientId=cid)
+        body = p.createMultiBody(1.0, spheres, basePosition=[-0.5, 0, 0], physicsClientId=cid)
+        p.changeDynamics(body, -1, linearDamping=0, physicsClientId=cid)
+        p.resetBaseVelocity(body, [speed, 0, 0], physicsClientId=cid)
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            run(cid, True, 20)
+        messages = [str(w.message) for w in caught if issubclass(w.category, BoxCCDWarning)]
+        expected = [f"body {body} (sphere) moves {12.0 * DT:.3g} m a step, more than half the smallest extent of "
+                    "its shapes (0.01 m)"] if named else []
+        assert [m.split(": BoxCCD")[0] for m in messages] == expected, messages
+
+
 def test_a_fast_body_of_links_with_no_box_is_named_once(cid):
     """Two spheres on a hinge (no box: BoxCCD cannot sweep them) thrown at 150 m/s through a
     1 cm box wall, as plain pybullet lets them: named once, with the base's move a step."""

@@ -709,16 +709,22 @@ class BoxCCD:
     def _loose_unswept(self, t):
         """Bodies with no box that moves whose base is free (a single body, or one with links
         on a base of mass), with shapes left to pybullet, not yet named as fast: {body: (half
-        the smallest extent of those shapes' bounding boxes, what they are)}."""
+        the smallest extent of those shapes, what they are)}. A shape whose size pybullet
+        does not report (a mesh) counts as its link's bounding box."""
         left = {}  # body -> {link: what} of its shapes left to pybullet
         for (b, link), what in t.unswept.items():
             left.setdefault(b, {})[link] = what
         out = {}
         for b in t.other_rigid + [b for b in t.other_chains if not self.world.fixed_base(b)]:
             if b in left and ("fast unswept", b) not in self._warned:
-                boxes = [raw.getAABB(b, link, physicsClientId=self.cid) for link in left[b]]
-                half = min(0.5 * min(y - x for x, y in zip(lo, hi)) for lo, hi in boxes)
-                out[b] = (half, ", ".join(sorted(set(left[b].values()))))
+                sizes = []
+                for link in left[b]:
+                    known = t.unswept_thickness[b, link]
+                    sizes += [s for s in known if s is not None]
+                    if None in known:
+                        lo, hi = raw.getAABB(b, link, physicsClientId=self.cid)
+                        sizes.append(min(y - x for x, y in zip(lo, hi)))
+                out[b] = (0.5 * min(sizes), ", ".join(sorted(set(left[b].values()))))
         return out
 
     def _name_fast_unswept(self):

@@ -78,7 +78,7 @@ def _normal(v) -> bool:
 def multibody_boxes(cid, body, link, planes=False):
     """(boxes, others) of a multibody link: boxes [(half extents (3,), X_CS (4, 4))] in the
     link's centre-of-mass frame (with ``planes``, its planes too, as ``plane_box``es), and
-    the geometry types of its other shapes."""
+    its other shapes [(geometry type, ``thickness``)]."""
     boxes, others = [], []
     for d in raw.getCollisionShapeData(body, link, physicsClientId=cid):
         if d[2] == pybullet.GEOM_BOX:
@@ -86,8 +86,21 @@ def multibody_boxes(cid, body, link, planes=False):
         elif d[2] == pybullet.GEOM_PLANE and planes and _normal(d[3]):  # its dimensions are the plane's normal
             boxes.append(plane_box(d[3], pose_matrix(d[5], d[6])))
         else:
-            others.append(d[2])
+            others.append((d[2], thickness(d[2], d[3])))
     return boxes, others
+
+
+def thickness(geometry, dimensions):
+    """The smallest extent (m) of a shape of getCollisionShapeData's geometry type and
+    dimensions: a sphere's diameter, a capsule's, the lesser of a cylinder's diameter and
+    length; None where pybullet does not report its size (a mesh: its scale only)."""
+    if geometry == pybullet.GEOM_SPHERE:
+        return 2.0 * dimensions[0]
+    if geometry == pybullet.GEOM_CAPSULE:  # (length, radius)
+        return 2.0 * dimensions[1]
+    if geometry == pybullet.GEOM_CYLINDER:
+        return min(2.0 * dimensions[1], dimensions[0])
+    return None
 
 
 class Shadow:

@@ -67,6 +67,7 @@ class _Frame:
 class _Body:
     frames: list = field(default_factory=list)
     left: list = field(default_factory=list)  # (link, what): shapes left to pybullet
+    thickness: dict = field(default_factory=dict)  # link -> [shapes.thickness] of those shapes
     unreadable: list = field(default_factory=list)  # (link, why): boxes that could not be read
     maximal: bool = False
     moves: str = ""  # how Bullet moves it: "rigid" (a free single body), "chain" (links on joints), "soft"
@@ -100,6 +101,9 @@ class Tables:
     # (all but soft bodies, and planes on a moving frame: a plane's reach is everywhere; one
     # on a fixed base is swept, as a half-space: shapes.plane_box)
     unswept: dict
+    # (body, link) -> [the smallest extent of each of those shapes, or None where pybullet
+    # does not report it: shapes.thickness]
+    unswept_thickness: dict
     damping: np.ndarray  # (F, 2): its body's linear and angular damping, as Bullet damps a free base
     # Bodies with no frame here (others.py): free single ones, articulated ones, fixed bases
     # with no links, and {body: why} those whose state pybullet does not give.
@@ -299,7 +303,8 @@ class World:
         if not rec.maximal or shadow is not None:
             boxes, others = multibody_boxes(self.cid, b, link, planes=static) if shadow is None else \
                 shadow.get(link, ([], []))
-            rec.left.extend((link, _GEOMETRY.get(g, str(g))) for g in others)
+            rec.left.extend((link, _GEOMETRY.get(g, str(g))) for g, _ in others)
+            rec.thickness.setdefault(link, []).extend(size for _, size in others)
             return boxes, None
         if link != -1:
             return [], "a link of a maximal-coordinate body made before bullet_boxccd was imported"
@@ -345,6 +350,7 @@ class World:
     def _build(self, ids):
         keys, kinds, selfc, defaults, fgm = [], [], [], [], {}
         unswept, unswept_groups = {}, {}  # shapes left to pybullet: (body, link) -> what; its default and file groups
+        unswept_thickness = {}
         box_frame, half, X_CS = [], [], []
         for b in ids:
             rec = self._bodies[b]
@@ -366,6 +372,7 @@ class World:
             for link, what in rec.left:
                 if what not in ("plane", "soft body"):
                     unswept[(b, link)] = what
+                    unswept_thickness[(b, link)] = rec.thickness.get(link, [None])
                     unswept_groups[(b, link)] = (default_group_mask(link == -1 and rec.fixed_base), file_group(link))
             for link, why in rec.unreadable:
                 self._warn(("unreadable", b, link), f"body {b} link {link}: its boxes cannot be read ({why}); "
@@ -405,7 +412,7 @@ class World:
             radius=np.linalg.norm(X_CS[:, :3, 3], axis=1) + np.linalg.norm(half, axis=1),
             frame_boxes=frame_boxes, frames_of=frames_of,
             filters=Filters(keys, defaults, fgm, self.journal, unswept_groups),
-            free_frames=np.flatnonzero(kind == FREE).tolist(), unswept=unswept,
+            free_frames=np.flatnonzero(kind == FREE).tolist(), unswept=unswept, unswept_thickness=unswept_thickness,
             damping=np.array([self.damping(b) for b, _ in keys], dtype=np.float64).reshape(-1, 2),
             other_rigid=rigid, other_chains=chains, other_fixed=fixed, other_stuck=stuck)
 
