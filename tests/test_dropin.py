@@ -1244,6 +1244,27 @@ def test_a_fast_box_at_pybullets_velocity_clamp_is_named_once(cid, given, subste
     assert p.getBaseVelocity(lifted, physicsClientId=cid)[0][0] > 100.5  # not clamped (damped a little)
 
 
+def test_a_box_at_a_velocity_clamp_it_was_given_is_named_with_that_clamp(cid):
+    """A cube given 1500 m/s with its clamp raised to 1000 (changeDynamics maxJointVelocity)
+    is cut to 1000 by pybullet: named once, with its clamp; one given 900 m/s under the
+    same clamp is not."""
+    reset(cid)
+    cut = p.loadURDF(CUBE_SMALL, [0, 0, 0], physicsClientId=cid)
+    under = p.loadURDF(CUBE_SMALL, [0, 5, 0], physicsClientId=cid)
+    for b, speed in ((cut, 1500.0), (under, 900.0)):
+        p.changeDynamics(b, -1, maxJointVelocity=1000, linearDamping=0, physicsClientId=cid)
+        p.resetBaseVelocity(b, [speed, 0, 0], [0, 0, 0], physicsClientId=cid)
+    ccd = BoxCCD(cid)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        for _ in range(3):
+            ccd.step()
+    said = [str(w.message) for w in caught if issubclass(w.category, BoxCCDWarning)]
+    assert [m.split(" (m/s")[0] for m in said] == [f"body {cut} moves or turns at 1000"], said
+    assert "maxJointVelocity" in said[0]
+    assert p.getBaseVelocity(cut, physicsClientId=cid)[0][0] == pytest.approx(1000.0)
+
+
 def test_a_velocity_given_above_the_clamp_is_named_though_a_contact_slows_it_below(cid):
     """A cube given 150 m/s along a floor is cut to 100 by pybullet and slowed below it by
     friction in the same step (99.96): it is named all the same, once; one given as much

@@ -782,18 +782,30 @@ class BoxCCD:
             return
         frames = sorted(self._clamp_candidates)
         self._clamp_candidates.clear()
-        for f in self._state.sweeper.at_speed(frames, MAX_VELOCITY, 1e-9):
-            self._name_clamp(self.world.tables.keys[f][0])
+        w, by_clamp = self.world, {}
+        for f in frames:
+            b = w.tables.keys[f][0]
+            if not w.maximal(b):
+                by_clamp.setdefault(w.journal.max_velocity.get(b, MAX_VELOCITY), []).append(f)
+        for clamp, group in by_clamp.items():
+            for f in self._state.sweeper.at_speed(group, clamp, 1e-9):
+                self._name_clamp(w.tables.keys[f][0], clamp)
 
-    def _name_clamp(self, b):
-        """Name body b at pybullet's default velocity clamp, unless pybullet does not clamp it:
-        in maximal coordinates, or with its clamp changed (changeDynamics(maxJointVelocity=...))."""
+    def _name_clamp(self, b, clamp=MAX_VELOCITY):
+        """Name body b at its velocity clamp ``clamp``, unless pybullet does not clamp it
+        there: in maximal coordinates, or with its clamp changed to another
+        (changeDynamics(maxJointVelocity=...))."""
         w = self.world
-        if w.maximal(b) or w.journal.max_velocity.get(b, MAX_VELOCITY) != MAX_VELOCITY:
+        if w.maximal(b) or w.journal.max_velocity.get(b, MAX_VELOCITY) != clamp:
             return
-        self._warn(("clamp", b), f"body {b} moves or turns at {MAX_VELOCITY:g} (m/s, rad/s) along a world axis, "
-                                 "pybullet's default velocity clamp: if it was given more, pybullet cut it to "
-                                 f"that (p.changeDynamics({b}, -1, maxJointVelocity=...) lifts it)")
+        if clamp == MAX_VELOCITY:
+            self._warn(("clamp", b), f"body {b} moves or turns at {MAX_VELOCITY:g} (m/s, rad/s) along a world axis, "
+                                     "pybullet's default velocity clamp: if it was given more, pybullet cut it to "
+                                     f"that (p.changeDynamics({b}, -1, maxJointVelocity=...) lifts it)")
+        else:
+            self._warn(("clamp", b), f"body {b} moves or turns at {clamp:g} (m/s, rad/s) along a world axis, the "
+                                     "velocity clamp it was given (maxJointVelocity): pybullet cuts each component "
+                                     "of its velocity and spin to that")
 
     def _chains_find(self, h):
         if not self._chains.bodies:
