@@ -1460,3 +1460,42 @@ print(ids, made, sorted(ccd.world.tables.frames_of), [str(w.message) for w in sa
     out = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=120, cwd=tmp_path)
     assert out.returncode == 0, out.stderr
     assert out.stdout.splitlines()[-1] == "(1, 2) (2, 3, 4) [0, 1, 3, 4] []", out.stdout  # (the pendulum has no box)
+
+
+def test_removing_a_maximal_body_that_constraints_hold_is_named(tmp_path):
+    """pybullet's removeBody frees a maximal-coordinate body but leaves in the world the
+    constraints of its joints and the user's on it (bullet3 issue 4808), which later steps
+    read (a crash at exit in some runs). Removing r2d2 in maximal coordinates, and a
+    maximal box that a fixed constraint holds, is named once each; removing a maximal box
+    that nothing holds and the same r2d2 as a multibody is not. In a subprocess, which
+    ends without tearing the world down."""
+    script = """
+import os, warnings
+import bullet_boxccd
+from bullet_boxccd import BoxCCD
+import pybullet as p, pybullet_data
+cid = p.connect(p.DIRECT)
+cube = p.createCollisionShape(p.GEOM_BOX, halfExtents=[0.1] * 3)
+held = p.createMultiBody(1, cube, basePosition=[0, 0, 1], useMaximalCoordinates=True)
+other = p.createMultiBody(1, cube, basePosition=[1, 0, 1], useMaximalCoordinates=True)
+alone = p.createMultiBody(1, cube, basePosition=[2, 0, 1], useMaximalCoordinates=True)
+joint = p.createConstraint(held, -1, other, -1, p.JOINT_FIXED, [0, 0, 0], [0.5, 0, 0], [-0.5, 0, 0])
+r2d2 = pybullet_data.getDataPath() + "/r2d2.urdf"
+maximal = p.loadURDF(r2d2, [3, 0, 0.6], useMaximalCoordinates=True)
+multibody = p.loadURDF(r2d2, [5, 0, 0.6])
+ccd = BoxCCD(cid)
+ccd.step()
+for b in (held, alone, maximal, multibody):
+    p.removeBody(b)
+with warnings.catch_warnings(record=True) as said:
+    warnings.simplefilter("always")
+    ccd.refresh()
+    ccd.refresh()
+print([str(w.message).split(":")[0] for w in said], flush=True)
+os._exit(0)
+"""
+    out = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=120, cwd=tmp_path)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.splitlines()[-1] == str(["body 3 (in maximal coordinates, with links) was removed",
+                                               "constraint 1 holds body 0 (in maximal coordinates), which was removed"
+                                               ]), out.stdout

@@ -145,6 +145,8 @@ class World:
             dirty = [b for b, s in j.bodies.items() if s > self._seen]
         else:
             dirty = None  # read everything
+        if j.reset <= self._seen:
+            self._name_dangling(j)
         self._seen = max(j.reset, j.last_body, j.filters, self._seen)
         self.count, ids = self._ids(count)
         # A registration outlives no change of its body (a new body may reuse the id).
@@ -163,6 +165,32 @@ class World:
         self._build(ids)
         self._warn_unseen(ids)
         return True
+
+    def _name_dangling(self, j):
+        """Name the constraints pybullet left holding a maximal-coordinate body removed since
+        the last read: its removeBody frees the body but leaves the constraints of its joints
+        and the user's on it in the world (bullet3 issue 4808), and every later step reads
+        the freed body."""
+        gone = [b for b, rec in self._bodies.items() if rec.maximal and j.renewed.get(b, 0) > self._seen]
+        if not gone:
+            return
+        consequence = ("every later step reads the freed body, which can crash the process or move other "
+                       "bodies (bullet3 issue 4808)")
+        for b in gone:
+            if self._bodies[b].unposed:
+                self._warn(("dangling", b, j.renewed[b]),
+                           f"body {b} (in maximal coordinates, with links) was removed: pybullet's removeBody "
+                           f"leaves the constraints of its joints in the world, and {consequence}; make such a "
+                           "body with useMaximalCoordinates=False to remove it")
+        cid = self.cid
+        for i in range(raw.getNumConstraints(physicsClientId=cid)):
+            uid = raw.getConstraintUniqueId(i, physicsClientId=cid)
+            info = raw.getConstraintInfo(uid, physicsClientId=cid)
+            for b in {info[0], info[2]}.intersection(gone):
+                self._warn(("dangling", b, j.renewed[b], uid),
+                           f"constraint {uid} holds body {b} (in maximal coordinates), which was removed: "
+                           f"pybullet's removeBody leaves it in the world, and {consequence}; remove the "
+                           "constraint first (p.removeConstraint)")
 
     def _ids(self, count):
         """(body count, every body's id). After ``createMultiBody(batchPositions=...)`` pybullet's client
