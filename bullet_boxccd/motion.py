@@ -9,6 +9,7 @@ exact for the motion as given.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -194,8 +195,9 @@ class QuadraticMotion:
 def quat_to_matrix(q) -> np.ndarray:
     """(..., 3, 3) rotation matrices of (..., 4) quaternions (x, y, z, w), pybullet's order."""
     q = np.asarray(q, dtype=float)
-    q = q * np.sqrt(2.0 / np.einsum("...i,...i->...", q, q))[..., None]  # scaled: the products below carry the 2
     x, y, z, w = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
+    scale = np.sqrt(2.0 / ((x * x + z * z) + (y * y + w * w)))  # the products below carry the 2
+    x, y, z, w = x * scale, y * scale, z * scale, w * scale
     R = np.empty(q.shape[:-1] + (3, 3))
     R[..., 0, 0] = 1 - (y * y + z * z)
     R[..., 0, 1] = x * y - z * w
@@ -227,13 +229,19 @@ def matrix_to_quat(R) -> np.ndarray:
 
 
 def pose_matrix(position, quaternion) -> np.ndarray:
-    """(4, 4) rigid pose of a position and a quaternion (x, y, z, w)."""
-    X = np.eye(4)
-    X[:3, :3] = quat_to_matrix(quaternion)
-    X[:3, 3] = position
-    return X
+    """(4, 4) rigid pose of a position and a quaternion (x, y, z, w): ``quat_to_matrix``'s
+    arithmetic on Python floats (numpy's per-call cost dominates one pose)."""
+    x, y, z, w = (float(c) for c in quaternion)
+    scale = math.sqrt(2.0 / ((x * x + z * z) + (y * y + w * w)))
+    x, y, z, w = x * scale, y * scale, z * scale, w * scale
+    a, b, c = (float(c) for c in position)
+    return np.array([[1 - (y * y + z * z), x * y - z * w, x * z + y * w, a],
+                     [x * y + z * w, 1 - (x * x + z * z), y * z - x * w, b],
+                     [x * z - y * w, y * z + x * w, 1 - (x * x + y * y), c],
+                     [0.0, 0.0, 0.0, 1.0]])
 
 
 def pose7(X) -> np.ndarray:
     """(7,) position and quaternion (x, y, z, w) of a (4, 4) rigid pose."""
-    return np.concatenate([np.asarray(X)[:3, 3], matrix_to_quat(np.asarray(X)[:3, :3])])
+    X = np.asarray(X)
+    return np.concatenate([X[:3, 3], matrix_to_quat(X[:3, :3])])

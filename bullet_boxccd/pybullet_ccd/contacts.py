@@ -124,7 +124,11 @@ class _Paths:
         self.plane = (half.max(axis=1) >= PLANE_HALF).tolist()  # each row's box stands for a plane
         self.track = {}  # in the order of the frames' first rows (the order pybullet is given their bodies)
         for r, f in enumerate(self.frame.tolist()):
-            self.track.setdefault(f, _Track([])).rows.append(r)
+            tr = self.track.get(f)
+            if tr is None:
+                self.track[f] = _Track([r])
+            else:
+                tr.rows.append(r)
         # The pairs' indices grouped by frame (each pair under both its frames), for pairs_of.
         pf = self.frame[sw.pairs]
         two = pf[:, 0] != pf[:, 1]
