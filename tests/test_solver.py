@@ -32,6 +32,7 @@ from bullet_boxccd import (
     time_of_impact_batch,
 )
 from bullet_boxccd.motion import rotation_matrix
+from bullet_boxccd.testing import Case, reference
 
 CUBE = Box.centered((0.5, 0.5, 0.5))
 STATIC = QuadraticMotion.static()
@@ -113,6 +114,45 @@ def test_overlapping_at_start_is_initial_with_least_penetration_normal():
     np.testing.assert_allclose(c.normal, (1, 0, 0), atol=1e-12)
     # A hair further out (0.1 of a box apart), the same pair never touches.
     assert time_of_impact(CUBE, STATIC, CUBE, QuadraticMotion.ballistic((1.1, 0.2, 0.0), (0, 0, 0)), (0, 1)) is None
+
+
+# A cube riding on a teleported paddle, starting against a resting cube it presses into
+# (the plugin's push of a row of cubes): both motions as the plugin fits them, whose
+# rounding makes the pair a turning one.
+_RIDING = [[[0.9999999986006824, 4.821523934907577e-06, -5.268195160670035e-05, 1.8108339474480646],
+            [-4.824757278181727e-06, 0.9999999981049261, -6.137482688690347e-05, -0.08161769595958239],
+            [5.268165558666732e-05, 6.137508097865003e-05, 0.9999999967288713, 0.024973752223847956],
+            [0.0, 0.0, 0.0, 1.0]],
+           [[0.0, 8.470329472543003e-22, 6.776263578034403e-21, 0.1013596162835333],
+            [-8.470329472543003e-22, 0.0, 1.3552527156068805e-20, -1.3877787807814457e-17],
+            [-6.776263578034403e-21, -1.3552527156068805e-20, 0.0, 0.0], [0.0, 0.0, 0.0, 0.0]],
+           [[0.0, 0.0, 0.0, -4.440892098500626e-16], [0.0] * 4, [0.0] * 4, [0.0] * 4]]
+_RESTING = [[[0.9999999984920621, 5.68250716538782e-06, -5.462220172340539e-05, 1.8608339754562124],
+             [-5.685988466525672e-06, 0.9999999979528085, -6.373423419551489e-05, -0.08897150046731737],
+             [5.4621839441340784e-05, 6.373454468061663e-05, 0.9999999964771812, 0.024979018365604455],
+             [0.0, 0.0, 0.0, 1.0]],
+            [[1.1102230246251565e-16, -8.470329472543003e-22, 0.0, -2.220446049250313e-16],
+             [-8.470329472543003e-22, -2.220446049250313e-16, 0.0, -1.3877787807814457e-17],
+             [1.3552527156068805e-20, 0.0, -1.1102230246251565e-16, 0.0], [0.0] * 4],
+            [[0.0] * 4] * 4]
+
+
+def test_boxes_touching_at_the_start_within_rounding_meet():
+    """The riding cube, grown across the separating margin in steps of 5e-19 m, against
+    the resting one: a contact at the oracle's crossing (within 1e-9 of the start)
+    every time. Where the most separating axis at the start clears the
+    margin by less than the advancement's bound on it rounds, that bound is not positive
+    at the start, and the advancement must stay there rather than take the whole range
+    as apart."""
+    hb = np.full(3, 0.025000000000043304)
+    for grow in np.linspace(1.830e-13, 1.831e-13, 201):
+        ha = np.full(3, 0.025 + grow)
+        case = Case(-ha, ha, np.array(_RIDING), -hb, hb, np.array(_RESTING), 0.0, 1.0)
+        got = time_of_impact(Box(-ha, ha), QuadraticMotion(case.coeffs_a), Box(-hb, hb),
+                             QuadraticMotion(case.coeffs_b), (0.0, 1.0))
+        ref = reference(case)
+        assert ref.outcome == "hit" and ref.t_hit < 1e-9, (grow, ref)
+        assert got is not None and abs(got.t - ref.t_hit) <= 1e-9, (grow, got, ref)
 
 
 def test_touching_at_range_end():
