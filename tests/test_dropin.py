@@ -7,6 +7,7 @@ id, masses changed, substeps, and every bad argument."""
 
 from __future__ import annotations
 
+import itertools
 import math
 import os
 import subprocess
@@ -253,7 +254,7 @@ def paddle_scene(cid, seed, mode, use):
     ground: teleported each step, teleported with its velocity set, or dragged by a
     fixed constraint (pybullet's mocap pattern). Returns (cubes behind the paddle,
     deepest overlap of a cube and the paddle at the end, the paddle's lag behind its
-    target at the end)."""
+    target at the end, deepest overlap of two cubes at the end)."""
     reset(cid, gravity=-9.81)
     rng = np.random.default_rng(seed)
     box(cid, [20, 2, 0.05], [0, 0, -0.05], mass=0.0)
@@ -286,7 +287,9 @@ def paddle_scene(cid, seed, mode, use):
     px = x_of(cid, paddle)
     behind = sum(x_of(cid, c) < px for c in cubes)
     pts = [q for c in cubes for q in p.getClosestPoints(paddle, c, 0.0, physicsClientId=cid)]
-    return behind, -min((q[8] for q in pts), default=0.0), x + n * speed * DT - px
+    among = [q for a, b in itertools.combinations(cubes, 2) for q in p.getClosestPoints(a, b, 0.0, physicsClientId=cid)]
+    return (behind, -min((q[8] for q in pts), default=0.0), x + n * speed * DT - px,
+            -min((q[8] for q in among), default=0.0))
 
 
 @pytest.mark.parametrize("mode", ["teleport", "teleport with velocity", "constraint"])
@@ -294,10 +297,11 @@ def test_kinematic_and_mocap_paddles_leave_no_cube_behind_and_never_stick(cid, m
     plain = sum(paddle_scene(cid, seed, mode, False)[0] for seed in range(4))
     assert plain >= 4, f"plain pybullet left only {plain} cubes behind: the test shows nothing"
     for seed in range(4):
-        behind, deepest, lag = paddle_scene(cid, seed, mode, True)
+        behind, deepest, lag, among = paddle_scene(cid, seed, mode, True)
         assert behind == 0, (mode, seed)
         assert deepest < 0.03, (mode, seed, deepest)  # no cube held inside the paddle
         assert lag < 1.2, (mode, seed, lag)  # the paddle is not held back (plain lags up to 0.5 m)
+        assert among < 0.005, (mode, seed, among)  # a pushed cube pushes the next: none inside another
 
 
 def test_partial_steps_taken_again_shorter_leave_the_rest_of_the_world_as_pybullet_moves_it(cid):

@@ -72,7 +72,7 @@ from ._hooks import raw
 from .events import CCDEvent
 from .layout import ANGULAR_VELOCITY, PATH_ROW, POSE, VELOCITY
 from .shapes import PLANE_HALF
-from .sweep import CREEP
+from .sweep import CREEP, ride_near
 from .world import FREE
 
 __all__ = ["Contacts", "place", "bounce"]
@@ -605,25 +605,62 @@ class Contacts:
         """Free bodies a kinematic jump (the user's teleport before the step) swept into,
         carried with it from the touch to where it stood when the step began: their path
         through the step (Bullet's, in a world where the kinematic body was already there)
-        is replaced by a ride on it. Returns {frame: (kinematic frame, centre-of-mass pose
-        (4, 4) at the step's start, velocity)}."""
+        is replaced by a ride on it, and what a riding body meets in turn rides from that
+        touch on, in time order (a paddle teleported into a row of cubes pushes the row).
+        Returns {frame: (kinematic frame, centre-of-mass pose (4, 4) at the step's start,
+        velocity)}."""
         pushed = {}
-        for i, j, tau in sorted(jw.hits, key=lambda h: h[2]):
+        order = itertools.count()
+        # (touch, order, pair of path rows (pusher's first), pusher frame, met frame, driver, contact)
+        queue = []
+        for i, j, tau in jw.hits:
             k, d = tables.box_frame[jw.boxes[[i, j]]].tolist()
-            pair = jw.rows[[i, j]]
-            c = self._contact(pair, tau, 1.0)
+            queue.append((tau, next(order), jw.rows[[i, j]], k, d, k, None))
+        heapq.heapify(queue)
+        while queue:
+            tau, _, pair, pusher, d, k, c = heapq.heappop(queue)
+            if d in pushed:  # it rides on from an earlier touch
+                continue
+            c = self._contact(pair, tau, 1.0) if c is None else c
             if c is None:
                 continue
-            act = tables.kind[d] == FREE and d not in kinematic and d not in user_moved and d not in pushed
-            events.append(CCDEvent(*tables.keys[k], *tables.keys[d], 0.0, 0.0, c.point, c.normal, c.feature,
+            act = tables.kind[d] == FREE and d not in kinematic and d not in user_moved
+            events.append(CCDEvent(*tables.keys[pusher], *tables.keys[d], 0.0, 0.0, c.point, c.normal, c.feature,
                                    bool(act), False))
             if act:
-                start = _core.frame_poses(state.rows, dt, np.array([d], dtype=np.int64), np.zeros(1))[0]
-                X = _carry(pair[0], tau, pose_matrix(start[:3], start[3:]))
+                start = pose_matrix(*np.split(_core.frame_poses(state.rows, dt, np.array([d], dtype=np.int64),
+                                                                np.zeros(1))[0], [3]))
+                X = _carry(pair[0], tau, start)
                 normal = _moved_with(pair[0], tau, c.normal)
                 v = self._push_velocity(tables, state, dt, d, k, X[:3, 3], normal, state.rows[d, VELOCITY])
                 pushed[d] = (k, X, v)
+                for t, rows, met, contact in self._ride_touches(tables, state, dt, pair[0], tau, d, start,
+                                                                kinematic | set(pushed)):
+                    heapq.heappush(queue, (t, next(order), rows, d, met, k, contact))
         return pushed
+
+    def _ride_touches(self, tables, state, dt, row, tau, d, start, exclude):
+        """The first touches of frame d riding from tau on with the frame of path row ``row``
+        (its centre of mass at pose ``start`` then) with the free frames standing where the
+        step began, not in ``exclude``: [(touch, pair of path rows, met frame, contact)]."""
+        carrier = row.copy()
+        carrier[PATH_ROW["box_in_frame"]] = _IDENTITY
+        com = np.linalg.solve(_core.row_poses(carrier[None], np.array([tau]))[0], start)  # in the carrier's frame
+        boxes = tables.frame_boxes[d]
+        rides = np.repeat(carrier[None], len(boxes), axis=0)
+        for r, b in enumerate(boxes):
+            rides[r, PATH_ROW["box_in_frame"]] = (com @ tables.X_CS[b]).reshape(-1)
+            rides[r, PATH_ROW["half_extents"]] = tables.half[b]
+        near = ride_near(self.cid, tables, state, dt, rides, boxes, exclude | {d})
+        if near is None:
+            return []
+        rows, met, pairs = near
+        touches = []
+        for i, j in pairs.tolist():
+            c = self._contact(rows[[i, j]], tau, 1.0)
+            if c is not None:
+                touches.append((c.t, rows[[i, j]], int(tables.box_frame[met[j]]), c))
+        return touches
 
     @staticmethod
     def _frame_row(tables, state, dt, k):

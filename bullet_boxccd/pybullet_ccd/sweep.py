@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass
+from functools import partial
 
 import numpy as np
 
@@ -204,7 +205,24 @@ def moves_into(cid, tables, moves, frozen_of, widen, fit_tolerance, tolerances, 
         near = unswept_near(cid, tables, tables.box_frame[moving].tolist(), bounds, 0.0)
         if near:
             near_unswept(near)
-    partners = [f for f in _partners(cid, tables, bounds, widen, frames) if tables.kind[f] == FREE]
+    near = _still_near(cid, tables, rows, moving, bounds, frozen_of, widen, frames)
+    if near is None:
+        return None
+    rows, boxes, pairs = near
+    tau, states, solves = _core.first_touches(rows, pairs, fit_tolerance, tolerances._core, penetration, CREEP,
+                                              states=True)
+    stats.solver_rows += solves
+    stats.count(states)
+    hits = _hits(pairs, tau)
+    return Sweep(rows, boxes, pairs, hits) if hits else None
+
+
+def _still_near(cid, tables, rows, moving, bounds, frozen_of, widen, exclude):
+    """The free frames (not in ``exclude``) that pybullet's broad phase finds within
+    ``widen`` of the swept ``bounds`` of boxes ``moving`` (path rows ``rows``), standing
+    still in the state ``frozen_of(frames)`` gives them: (rows, boxes, candidate pairs)
+    with the moving boxes first and each pair (moving row, still row), or None."""
+    partners = [f for f in _partners(cid, tables, bounds, widen, exclude) if tables.kind[f] == FREE]
     if not partners:
         return None
     still = frozen_of(partners).copy()
@@ -214,14 +232,7 @@ def moves_into(cid, tables, moves, frozen_of, widen, fit_tolerance, tolerances, 
     boxes, rows = np.concatenate([moving, more]), np.concatenate([rows, more_rows])
     pairs = _pairs(tables, boxes, np.concatenate([bounds, _core.swept_bounds(more_rows)]), len(moving))
     pairs = pairs[pairs[:, 1] >= len(moving)] if len(pairs) else pairs
-    if not len(pairs):
-        return None
-    tau, states, solves = _core.first_touches(rows, pairs, fit_tolerance, tolerances._core, penetration, CREEP,
-                                              states=True)
-    stats.solver_rows += solves
-    stats.count(states)
-    hits = _hits(pairs, tau)
-    return Sweep(rows, boxes, pairs, hits) if hits else None
+    return (rows, boxes, pairs) if len(pairs) else None
 
 
 def step_reach(state, tables, dt):
@@ -239,13 +250,23 @@ def jump_sweep(cid, tables, state, dt, fit_tolerance, tolerances, penetration, s
     for ``moves_into``."""
     if not state.jumps:
         return None
+    return moves_into(cid, tables, state.jumps, partial(_at_start, state, dt), step_reach(state, tables, dt),
+                      fit_tolerance, tolerances, penetration, stats, near_unswept)
 
-    def at_start(partners):
-        state.read_poses(state.stale(partners))
-        start = state.rows.copy()
-        start[partners, POSE] = _core.frame_poses(state.rows, dt, np.array(partners, dtype=np.int64),
-                                                  np.zeros(len(partners)))
-        return start
 
-    return moves_into(cid, tables, state.jumps, at_start, step_reach(state, tables, dt), fit_tolerance, tolerances,
-                      penetration, stats, near_unswept)
+def ride_near(cid, tables, state, dt, rides, boxes, exclude):
+    """The free frames (not in ``exclude``) standing where the step began that boxes
+    riding on a kinematic jump can meet (``rides``: their path rows, of ``boxes``): as
+    ``_still_near``."""
+    return _still_near(cid, tables, rides, np.asarray(boxes, dtype=np.int64), _core.swept_bounds(rides),
+                       partial(_at_start, state, dt), step_reach(state, tables, dt), exclude)
+
+
+def _at_start(state, dt, partners):
+    """The frame state with the ``partners``' poses where the step began (on Bullet's path at
+    tau = 0)."""
+    state.read_poses(state.stale(partners))
+    start = state.rows.copy()
+    start[partners, POSE] = _core.frame_poses(state.rows, dt, np.array(partners, dtype=np.int64),
+                                              np.zeros(len(partners)))
+    return start

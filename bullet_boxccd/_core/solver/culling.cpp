@@ -88,10 +88,10 @@ SeparatingAxis centre_line(const Pair &pair, const Sample &at) {
 namespace {
 
 // The first root in (lo, hi] of q(x) = A + B x + C x^2, given q(lo) > 0 (lo where
-// it is not: rounding can leave the bound at zero on an axis found to separate by
-// no more than the margin, and the contact may then be at lo); NaN if q > 0 on
-// all of it. Closed form (the stable one); the caller shrinks it by a few eps,
-// which the margin covers.
+// it is not: on an axis found to separate by a hair more than the margin, rounding
+// can leave the bound at or below zero, and the contact may then be at lo); NaN if
+// q > 0 on all of it. Closed form (the stable one); the caller shrinks it by a few
+// eps, which the margin covers.
 double first_root(double A, double B, double C, double lo, double hi) {
     const auto q = [&](double x) { return A + x * (B + x * C); };
     if (!(q(lo) > 0.0)) return lo;
