@@ -140,10 +140,10 @@ _RESTING = [[[0.9999999984920621, 5.68250716538782e-06, -5.462220172340539e-05, 
 def test_boxes_touching_at_the_start_within_rounding_meet():
     """The riding cube, grown across the separating margin in steps of 5e-19 m, against
     the resting one: a contact at the oracle's crossing (within 1e-9 of the start)
-    every time, and at 0.099 from 1 cm further back. Where the most separating axis at the start clears the
-    margin by less than the advancement's bound on it rounds, that bound is not positive
-    at the start, and the advancement must stay there rather than take the whole range
-    as apart."""
+    every time, and at 0.099 from 1 cm further back. Where the most separating axis at
+    the start clears the margin by less than the advancement's bound on it rounds, that
+    bound is not positive at the start, and the advancement must stay there rather than
+    take the whole range as apart."""
     hb = np.full(3, 0.025000000000043304)
     back = np.array(_RIDING)
     back[0, 0, 3] -= 0.01  # the riding cube 1 cm further back: it meets the other at t = 0.099
