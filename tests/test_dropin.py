@@ -767,6 +767,29 @@ def test_a_fast_compound_with_no_box_is_sized_by_its_smallest_shape(cid):
         assert [m.split(": BoxCCD")[0] for m in messages] == expected, messages
 
 
+def test_a_fast_box_with_a_sphere_beside_it_is_named_once(cid):
+    """A free body of a 5 cm box and a 2 cm sphere (createCollisionShapeArray) swept as fast:
+    at 150 m/s (0.625 m a step) its sphere, left to pybullet, can pass through a 1 cm wall
+    while the world goes back to the box's contact: named once; at 3.6 m/s (1.5 cm a step:
+    the box is swept, the sphere cannot cross itself) not."""
+    for speed, named in ((3.6, False), (150.0, True)):
+        reset(cid)
+        box(cid, [0.005, 1, 1], [0, 0, 0], mass=0.0)
+        shape = p.createCollisionShapeArray([p.GEOM_BOX, p.GEOM_SPHERE], halfExtents=[[0.025] * 3, [0, 0, 0]],
+                                            radii=[0, 0.02], collisionFramePositions=[[0, 0, 0], [-0.05, 0, 0]],
+                                            physicsClientId=cid)
+        body = p.createMultiBody(0.1, shape, basePosition=[0.5, 0, 0], physicsClientId=cid)
+        p.changeDynamics(body, -1, linearDamping=0, maxJointVelocity=1000, physicsClientId=cid)
+        p.resetBaseVelocity(body, [-speed, 0, 0], physicsClientId=cid)
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            ccd = run(cid, True, 48)
+        messages = [str(w.message) for w in caught if issubclass(w.category, BoxCCDWarning)]
+        expected = [f"body {body} link -1 (sphere) moves {speed * DT:.3g} m a step with its boxes"] if named else []
+        assert [m.split(", more than")[0] for m in messages] == expected, messages
+        assert ccd.stats.swept_boxes > 0
+
+
 def test_a_fast_body_of_links_with_no_box_is_named_once(cid):
     """Two spheres on a hinge (no box: BoxCCD cannot sweep them) thrown at 150 m/s through a
     1 cm box wall, as plain pybullet lets them: named once, with the base's move a step."""
@@ -855,7 +878,8 @@ def test_a_shape_left_to_pybullet_is_named_as_pybullet_collides_it(cid, case, na
     """A static sphere in a fast cube's way is named, made in maximal coordinates too
     (pybullet meets it alone); one the user filtered out of the cube's collisions (a pair
     rule, or groups and masks) is not: pybullet never meets it (the cube passes through it
-    with no contact), and neither is a sphere of the cube's own body."""
+    with no contact), and neither is a sphere of the cube's own body as one in its reach
+    (it is named as a shape moving with the cube's boxes)."""
     reset(cid)
     cube = box(cid, [0.05] * 3, [-1.5, 0, 0])
     if case == "its own":
@@ -879,10 +903,12 @@ def test_a_shape_left_to_pybullet_is_named_as_pybullet_collides_it(cid, case, na
         run(cid, True, 12, lambda k: case != "its own" and contacts.append(
             len(p.getContactPoints(cube, sphere, physicsClientId=cid))))
     messages = [str(w.message) for w in caught if issubclass(w.category, BoxCCDWarning)]
-    assert messages == (["body 1 link -1 (sphere) is in the reach of a fast box: BoxCCD sweeps boxes against "
-                         "boxes only, so pybullet alone meets that contact and the box can pass through it"]
-                        if named else []), messages
-    if case != "its own":
+    if case == "its own":
+        assert [m.split(" moves")[0] for m in messages] == [f"body {cube} link -1 (sphere)"], messages
+    else:
+        assert messages == (["body 1 link -1 (sphere) is in the reach of a fast box: BoxCCD sweeps boxes against "
+                             "boxes only, so pybullet alone meets that contact and the box can pass through it"]
+                            if named else []), messages
         assert (max(contacts) > 0) == named, contacts
 
 

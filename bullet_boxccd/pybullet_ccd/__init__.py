@@ -46,7 +46,7 @@ from ._hooks import MAX_VELOCITY, last_serial, raw, replay_impulses
 from .articulated import Articulated
 from .contacts import Contacts
 from .events import BoxCCDWarning, CCDEvent, CCDStats, ClientDisconnectedError, not_finite_message
-from .layout import ANGULAR_VELOCITY
+from .layout import ANGULAR_VELOCITY, VELOCITY
 from .others import Others
 from .state import FrameState
 from .sweep import jump_sweep, sweep
@@ -226,6 +226,7 @@ class BoxCCD:
             self._turning = set()  # (the frames are numbered anew)
             self._unswept = {k: v for k, v in t.unswept.items() if ("unswept", *k) not in self._warned}
             self._fast_unswept = self._loose_unswept(t)
+            self._own_unswept = self._unswept_with_boxes(t)
             self._known = False
             self.stats.tracked_boxes = len(t.half)
             small = t.half.min() if len(t.half) else math.inf
@@ -354,7 +355,7 @@ class BoxCCD:
             # the step unless it finds a contact.
             st.begin_kinematic((), ())
             sw = sweep(self.cid, self.world.tables, st, h, self.fit_tolerance, self.tolerances, self.penetration,
-                       self.stats, time.perf_counter(), fast, self._clamp_candidates,
+                       self.stats, time.perf_counter(), fast, self._seen_fast,
                        self._near_unswept if self._unswept else None)
             if sw is None:
                 self._name_clamped()
@@ -663,7 +664,7 @@ class BoxCCD:
         st.end_kinematic(h)
         if sw is None and not (stepped and fast is None):
             sw = sweep(self.cid, t, st, h, self.fit_tolerance, self.tolerances, self.penetration, self.stats, t0, fast,
-                       self._clamp_candidates, self._near_unswept if self._unswept else None)
+                       self._seen_fast, self._near_unswept if self._unswept else None)
         jw = jump_sweep(self.cid, t, st, h, self.fit_tolerance, self.tolerances, self.penetration, self.stats,
                         self._near_unswept if self._unswept else None)
         found = self._chains_find(h)
@@ -717,15 +718,25 @@ class BoxCCD:
         out = {}
         for b in t.other_rigid + [b for b in t.other_chains if not self.world.fixed_base(b)]:
             if b in left and ("fast unswept", b) not in self._warned:
-                sizes = []
-                for link in left[b]:
-                    known = t.unswept_thickness[b, link]
-                    sizes += [s for s in known if s is not None]
-                    if None in known:
-                        lo, hi = raw.getAABB(b, link, physicsClientId=self.cid)
-                        sizes.append(min(y - x for x, y in zip(lo, hi)))
-                out[b] = (0.5 * min(sizes), ", ".join(sorted(set(left[b].values()))))
+                half = min(self._smallest_extent(t, (b, link)) for link in left[b]) / 2.0
+                out[b] = (half, ", ".join(sorted(set(left[b].values()))))
         return out
+
+    def _unswept_with_boxes(self, t):
+        """Free frames with shapes left to pybullet beside their boxes, not yet named: {frame:
+        (half the smallest extent of those shapes, what they are)}."""
+        return {f: (self._smallest_extent(t, t.keys[f]) / 2.0, t.unswept[t.keys[f]]) for f in t.free_frames
+                if t.keys[f] in t.unswept and ("own unswept", *t.keys[f]) not in self._warned}
+
+    def _smallest_extent(self, t, key):
+        """The smallest extent of the shapes of frame key (body, link) left to pybullet; of its
+        bounding box where pybullet does not report a shape's size (a mesh)."""
+        known = t.unswept_thickness[key]
+        sizes = [s for s in known if s is not None]
+        if None in known:
+            lo, hi = raw.getAABB(*key, physicsClientId=self.cid)
+            sizes.append(min(y - x for x, y in zip(lo, hi)))
+        return min(sizes)
 
     def _name_fast_unswept(self):
         """Free bodies with no box whose base moved farther in the (sub)step just taken than
@@ -740,6 +751,33 @@ class BoxCCD:
                            f"body {b} ({what}) moves {move:.3g} m a step, more than half the smallest extent of its "
                            f"shapes ({half:.3g} m): BoxCCD sweeps boxes only, so pybullet alone meets its contacts "
                            "and it can pass through what it meets")
+
+    def _seen_fast(self, frames):
+        """The frames a sweep found fast, their velocities after pybullet's (partial) step
+        read: candidates for the velocity clamp's warning (``_name_clamped``), and for
+        ``_name_own_unswept``."""
+        self._clamp_candidates.update(frames)
+        if self._own_unswept:
+            self._name_own_unswept(frames)
+
+    def _name_own_unswept(self, frames):
+        """Of fast free frames, those with shapes left to pybullet beside their boxes that
+        move farther in a step than half the smallest extent of those shapes: named once
+        each (the world going back to a contact of the boxes can leave such a shape inside
+        what it passed)."""
+        h, keys = self._dt / self._substeps, self.world.tables.keys
+        for f in sorted(set(frames).intersection(self._own_unswept)):
+            half, what = self._own_unswept[f]
+            x, y, z = self._state.rows[f, VELOCITY].tolist()
+            move = math.sqrt(x * x + y * y + z * z) * h
+            if move > half:
+                del self._own_unswept[f]
+                b, link = keys[f]
+                self._warn(("own unswept", b, link),
+                           f"body {b} link {link} ({what}) moves {move:.3g} m a step with its boxes, more than half "
+                           f"the smallest extent of its shapes that are not boxes ({half:.3g} m): BoxCCD sweeps "
+                           "boxes only, so those shapes can pass through what they meet, and where the world goes "
+                           "back to a contact of the boxes they can be left inside it")
 
     def _near_unswept(self, keys):
         """Shapes left to pybullet that a fast box came near: named once each."""

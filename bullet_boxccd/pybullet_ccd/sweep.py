@@ -68,10 +68,10 @@ def sweep(cid, tables, state, dt, fit_tolerance, tolerances, penetration, stats,
           near_unswept=None):
     """Sweep the step just taken (``state`` holds the velocities of the moving frames and
     the kinematic frames' poses; ``fast`` what ``state.sweeper.fast`` found, if it was
-    asked already). Returns a Sweep, or None if nothing touched. The fast frames are added
-    to the set ``fast_seen``; ``near_unswept`` is told the shapes left to pybullet
-    (``tables.unswept``) that pybullet's broad phase finds within the reach of the fast
-    boxes whose centres can cross them (``_centre_travel``)."""
+    asked already). Returns a Sweep, or None if nothing touched. The fast frames are told
+    to ``fast_seen`` (their velocities read); ``near_unswept`` is told the shapes left to
+    pybullet (``tables.unswept``) that pybullet's broad phase finds within the reach of
+    the fast boxes whose centres can cross them (``_centre_travel``)."""
     sweeper = state.sweeper
     if fast is None:
         fast = state.fast(dt)
@@ -80,7 +80,7 @@ def sweep(cid, tables, state, dt, fit_tolerance, tolerances, penetration, stats,
             return None
     fast, slack, fast_frames = fast
     if fast_seen is not None:
-        fast_seen.update(fast_frames)
+        fast_seen(fast_frames)
     state.read_poses(state.stale(fast_frames))
     stats.swept_boxes += len(fast)
     bounds = None  # the fast boxes' swept bounds, once asked for
