@@ -1494,8 +1494,8 @@ print(ids, made, sorted(ccd.world.tables.frames_of), [str(w.message) for w in sa
 
 def test_removing_a_maximal_body_that_constraints_hold_is_named(tmp_path):
     """pybullet's removeBody frees a maximal-coordinate body but leaves in the world the
-    constraints of its joints and the user's on it (bullet3 issue 4808), which later steps
-    read (a crash at exit in some runs). Removing r2d2 in maximal coordinates, and a
+    constraints of its joints and the user's on it, which later steps read (a crash at
+    exit in some runs). Removing r2d2 in maximal coordinates, and a
     maximal box that a fixed constraint holds, is named once each; removing a maximal box
     that nothing holds and the same r2d2 as a multibody is not. In a subprocess, which
     ends without tearing the world down."""

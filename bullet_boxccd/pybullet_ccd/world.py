@@ -169,13 +169,11 @@ class World:
     def _name_dangling(self, j):
         """Name the constraints pybullet left holding a maximal-coordinate body removed since
         the last read: its removeBody frees the body but leaves the constraints of its joints
-        and the user's on it in the world (bullet3 issue 4808), and every later step reads
-        the freed body."""
+        and the user's on it in the world, and every later step reads the freed body."""
         gone = [b for b, rec in self._bodies.items() if rec.maximal and j.renewed.get(b, 0) > self._seen]
         if not gone:
             return
-        consequence = ("every later step reads the freed body, which can crash the process or move other "
-                       "bodies (bullet3 issue 4808)")
+        consequence = "every later step reads the freed body, which can crash the process or move other bodies"
         for b in gone:
             if self._bodies[b].unposed:
                 self._warn(("dangling", b, j.renewed[b]),
