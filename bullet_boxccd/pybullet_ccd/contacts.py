@@ -205,17 +205,14 @@ class _Paths:
         """Frame f moves with frame k, of path row ``row_k``, from tau on (from centre-of-mass
         pose ``com`` (4, 4) at tau, if given, rather than where its path has it)."""
         tr = self.track[f]
-        carrier = row_k.copy()
-        carrier[PATH_ROW["box_in_frame"]] = _IDENTITY
-        Finv = np.linalg.inv(_core.row_poses(carrier[None], np.array([tau]))[0])
-        com = self.com(f, tau) if com is None else com
+        carrier, rel = _rider(row_k, tau, self.com(f, tau) if com is None else com)
         for r in tr.rows:
             X_CS = self.tables.X_CS[self.box[r]]
             self.rows[r, PATH_ROW["pose_after"]] = carrier[PATH_ROW["pose_after"]]
             for name in ("displacement", "axis", "angle"):
                 self.rows[r, PATH_ROW[name]] = carrier[PATH_ROW[name]]
-            self.rows[r, PATH_ROW["box_in_frame"]] = (Finv @ com @ X_CS).reshape(-1)
-        tr.carry, tr.carrier = (carrier, Finv @ com), k
+            self.rows[r, PATH_ROW["box_in_frame"]] = (rel @ X_CS).reshape(-1)
+        tr.carry, tr.carrier = (carrier, rel), k
         self._changed(tr, _CARRIED, tau)
 
     @staticmethod
@@ -643,13 +640,11 @@ class Contacts:
         """The first touches of frame d riding from tau on with the frame of path row ``row``
         (its centre of mass at pose ``start`` then) with the free frames standing where the
         step began, not in ``exclude``: [(touch, pair of path rows, met frame, contact)]."""
-        carrier = row.copy()
-        carrier[PATH_ROW["box_in_frame"]] = _IDENTITY
-        com = np.linalg.solve(_core.row_poses(carrier[None], np.array([tau]))[0], start)  # in the carrier's frame
+        carrier, rel = _rider(row, tau, start)
         boxes = tables.frame_boxes[d]
         rides = np.repeat(carrier[None], len(boxes), axis=0)
         for r, b in enumerate(boxes):
-            rides[r, PATH_ROW["box_in_frame"]] = (com @ tables.X_CS[b]).reshape(-1)
+            rides[r, PATH_ROW["box_in_frame"]] = (rel @ tables.X_CS[b]).reshape(-1)
             rides[r, PATH_ROW["half_extents"]] = tables.half[b]
         near = ride_near(self.cid, tables, state, dt, rides, boxes, exclude | {d})
         if near is None:
@@ -748,6 +743,14 @@ def _overtaken(wk, n, penetration):
 def _moved_with(row, s, v):
     """Direction v at s, turned with the row's frame to the end of its path."""
     return axis_angle_matrix(row[PATH_ROW["axis"]], (1.0 - s) * row[PATH_ROW["angle"]][0]) @ v
+
+
+def _rider(row, tau, com):
+    """(the frame of path row ``row`` as a path row of its own, centre-of-mass pose ``com``
+    (4, 4) at tau in that frame): what a body riding with the frame from tau on needs."""
+    frame = row.copy()
+    frame[PATH_ROW["box_in_frame"]] = _IDENTITY
+    return frame, np.linalg.inv(_core.row_poses(frame[None], np.array([tau]))[0]) @ com
 
 
 def _carry(row, tau, X):
