@@ -26,7 +26,7 @@ Configurations (one knob at a time around the default):
 * ``fit_tolerance`` 0.005, 0.5 (rotation fit split into 2, 4, .. pieces until its
   error is below this fraction of the smallest half extent),
 * ``penetration`` (the overlap by which a touching pair presses in or parts) 1e-6, 1e-4 m,
-* ``impact_depth`` (the overlap an impact is resolved at, at most a tenth of the thinner
+* ``impact_depth`` (the overlap an impact is resolved at, at most a quarter of the thinner
   box) 1e-5, 1e-4 m,
 * ``depth_tolerance`` 1e-4, 1e-2 m (a contact met inside a step that ends shallower is
   pybullet's),

@@ -12,6 +12,7 @@ import pytest
 
 from bullet_boxccd import BoxCCD, Outcome, _core
 from bullet_boxccd.motion import quat_to_matrix
+from bullet_boxccd.pybullet_ccd.contacts import IMPACT_SHARE
 
 DT = 1 / 240
 
@@ -48,15 +49,15 @@ PENETRATION, IMPACT_DEPTH = 1e-5, 1e-3  # BoxCCD's defaults
 
 
 def impact_depth(cid, ev):
-    """The overlap BoxCCD resolves the event's impact at: IMPACT_DEPTH, at most a tenth of the
-    thinnest half extent of the two links' boxes (IMPACT_DEPTH where pybullet does not give
+    """The overlap BoxCCD resolves the event's impact at: IMPACT_DEPTH, at most IMPACT_SHARE of
+    the thinnest half extent of the two links' boxes (IMPACT_DEPTH where pybullet does not give
     them: maximal-coordinate bodies)."""
     try:
         thin = min(min(d[3]) / 2 for body, link in ((ev.body_a, ev.link_a), (ev.body_b, ev.link_b))
                    for d in p.getCollisionShapeData(body, link, physicsClientId=cid) if d[2] == p.GEOM_BOX)
     except p.error:
         return IMPACT_DEPTH
-    return max(PENETRATION, min(IMPACT_DEPTH, 0.1 * thin))
+    return max(PENETRATION, min(IMPACT_DEPTH, IMPACT_SHARE * thin))
 
 
 def check_rewound_poses(cid, events, margin=0.001):
@@ -312,31 +313,46 @@ def test_restitution_one_comes_back_at_the_converged_engines_speed(cid):
     assert rewinds >= 5  # a strike late in a step is pybullet's own: it resolves it from the end
 
 
-def test_a_maximal_coordinate_cube_rebounds_between_two_walls_with_its_own_restitution(cid):
-    """Restitution 0.8 on a maximal-coordinate cube and on two 1 cm walls 0.6 m apart, the
-    cube at 50 m/s between them: after two impacts it moves at 0.8^4 of its speed, each
-    resolved from its touch (pybullet reports no restitution of a maximal-coordinate body,
-    so BoxCCD does not raise it), and after them the bodies still have the restitution the
-    user gave them: a third impact in plain pybullet at a fine step rebounds at 0.64 again."""
+def _between_maximal_walls(cid):
+    """Restitution 0.8 on a maximal-coordinate cube and on two 1 cm walls 0.6 m apart."""
     reset(cid)
     for x in (-0.3, 0.3):
         box(cid, [0.005, 1, 1], [x, 0, 0], mass=0.0, maximal=True, restitution=0.8)
-    cube = box(cid, [0.05] * 3, [-0.1, 0.0, 0.0], maximal=True, restitution=0.8)
+    return box(cid, [0.05] * 3, [-0.1, 0.0, 0.0], maximal=True, restitution=0.8)
+
+
+def _next_rebound(cid, cube):
+    """The cube's velocity along x over what it had, at its next impact in plain pybullet at DT/64."""
+    p.setTimeStep(DT / 64, physicsClientId=cid)
+    v = after = p.getBaseVelocity(cube, physicsClientId=cid)[0][0]
+    for _ in range(64 * 20):
+        p.stepSimulation(physicsClientId=cid)
+        after = p.getBaseVelocity(cube, physicsClientId=cid)[0][0]
+        if np.sign(after) != np.sign(v):
+            break
+    return after / v
+
+
+def test_a_maximal_coordinate_cube_rebounds_between_two_walls_with_its_own_restitution(cid):
+    """The cube of ``_between_maximal_walls`` at 50 m/s: after two impacts it moves at 0.8^4
+    of its speed, each resolved from its touch (pybullet reports no restitution of a
+    maximal-coordinate body, so BoxCCD does not raise it), and after them the bodies still
+    have the restitution the user gave them: the third impact, in plain pybullet at a fine
+    step, rebounds as in a world just made with that restitution and the cube's state."""
+    cube = _between_maximal_walls(cid)
     p.resetBaseVelocity(cube, [50, 0, 0], [0, 0, 0], physicsClientId=cid)
     ccd = BoxCCD(cid)
     hits = 0
     while hits < 2:
         hits += sum(e.rewound for e in ccd.step())
-    v = p.getBaseVelocity(cube, physicsClientId=cid)[0][0]
-    assert abs(abs(v) - 50 * 0.64**2) < 0.01 * 50, v
-    p.setTimeStep(DT / 64, physicsClientId=cid)
-    after = v
-    for _ in range(64 * 20):  # to the third impact
-        p.stepSimulation(physicsClientId=cid)
-        after = p.getBaseVelocity(cube, physicsClientId=cid)[0][0]
-        if np.sign(after) != np.sign(v):
-            break
-    assert np.sign(after) != np.sign(v) and 0.64 <= abs(after / v) <= 0.64 + 0.08 + 0.01, (v, after)
+    state = p.getBasePositionAndOrientation(cube, physicsClientId=cid), p.getBaseVelocity(cube, physicsClientId=cid)
+    assert abs(abs(state[1][0][0]) - 50 * 0.64**2) < 0.01 * 50, state
+    rebound = _next_rebound(cid, cube)
+    fresh = _between_maximal_walls(cid)
+    p.resetBasePositionAndOrientation(fresh, *state[0], physicsClientId=cid)
+    p.resetBaseVelocity(fresh, *state[1], physicsClientId=cid)
+    want = _next_rebound(cid, fresh)
+    assert -0.72 < want < -0.6 and abs(rebound - want) < 0.005, (rebound, want)
 
 
 def _two_cubes_at_one_wall(cid, restitutions, h=DT, shift=None):

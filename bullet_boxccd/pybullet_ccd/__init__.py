@@ -93,7 +93,7 @@ class BoxCCD:
         for every impact. In (0, 1e-3]. Default 1e-5.
     impact_depth : float
         Overlap (m) at which an impact met inside a step is resolved: the world goes back
-        to where the pair overlaps by this much, at most a tenth of the thinner box's
+        to where the pair overlaps by this much, at most a quarter of the thinner box's
         smallest half extent. Bullet's box-box detector then sees every corner of an edge
         or face that arrives within it, as pybullet at a fine step sees them (a plank's end
         slapping the floor flat strikes with both corners); at 1e-5 m a roll of 1e-4 rad

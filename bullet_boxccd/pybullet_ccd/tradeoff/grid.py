@@ -41,7 +41,7 @@ __all__ = ["configs", "task", "sweep", "aggregate", "write_outputs", "summary_te
 
 MARGIN = 0.001  # pybullet's collision margin for boxes
 # Where an impact should put the pair: overlapping by at most its impact depth (the default
-# 1 mm, at most a tenth of the thinner box: 1 mm at the ground, 0.5 mm at the wall), apart by
+# 1 mm, at most a quarter of the thinner box's half extent), apart by
 # at most the margin at a vertex or edge.
 BAND = (-1e-3 - 1e-6, MARGIN + 1e-6)
 REF_FIT = 1e-4  # fit_tolerance of the reference run (contact times are compared with it)
