@@ -454,6 +454,50 @@ def test_removed_and_recreated_body_with_the_same_id_is_swept(cid):
     assert through[True] == 0 and through[False] >= 3, through
 
 
+def test_a_body_made_or_removed_every_step_is_read_alone_and_the_world_steps_as_plain(monkeypatch):
+    """Bodies spawned and removed between steps (pybullet reuses the ids) among 40 resting
+    cubes and an r2d2: BoxCCD reads the body made, not the whole world again, and every
+    body ends every step bit for bit where plain pybullet, given the same calls in a
+    second client, has it (nothing is fast)."""
+    from bullet_boxccd.pybullet_ccd import world as W
+    reads = []
+    real = W.World._read_body
+    monkeypatch.setattr(W.World, "_read_body", lambda self, b: reads.append(b) or real(self, b))
+    a, b = p.connect(p.DIRECT), p.connect(p.DIRECT)
+    try:
+        rngs, spawned = {}, {}
+        for c in (a, b):
+            p.setGravity(0, 0, -9.81, physicsClientId=c)
+            p.loadURDF(os.path.join(pybullet_data.getDataPath(), "plane.urdf"), physicsClientId=c)
+            p.loadURDF(os.path.join(pybullet_data.getDataPath(), "r2d2.urdf"), [2, 2, 0.5], physicsClientId=c)
+            for i in range(40):
+                box(c, [0.05] * 3, [i % 8 * 0.3, i // 8 * 0.3, 0.05])
+            rngs[c], spawned[c] = np.random.default_rng(5), []
+        ccd = BoxCCD(b)
+        p.stepSimulation(physicsClientId=a)
+        ccd.step()
+        reads.clear()
+        for k in range(120):
+            for c in (a, b):
+                rng = rngs[c]
+                if k % 3 != 2 or not spawned[c]:
+                    spawned[c].append(box(c, [0.04] * 3, [rng.uniform(-3, -1), rng.uniform(-1, 1), 0.04]))
+                else:
+                    p.removeBody(spawned[c].pop(int(rng.integers(len(spawned[c])))), physicsClientId=c)
+            p.stepSimulation(physicsClientId=a)
+            ccd.step()
+            for body in range(p.getNumBodies(physicsClientId=a)):
+                uid = p.getBodyUniqueId(body, physicsClientId=a)
+                assert p.getBasePositionAndOrientation(uid, physicsClientId=a) == \
+                    p.getBasePositionAndOrientation(uid, physicsClientId=b), (k, uid)
+                assert p.getBaseVelocity(uid, physicsClientId=a) == p.getBaseVelocity(uid, physicsClientId=b), (k, uid)
+        assert len(reads) == 80, len(reads)  # the 80 bodies made, each once
+        assert ccd.stats.rewinds == 0 and ccd.stats.swept_boxes == 0
+    finally:
+        p.disconnect(a)
+        p.disconnect(b)
+
+
 @pytest.mark.parametrize("substeps", [1, 4])
 @pytest.mark.parametrize("given", ["force", "torque motor"])
 def test_a_removed_body_takes_the_forces_given_to_it_along(cid, given, substeps):

@@ -396,11 +396,12 @@ class BoxCCD:
         that drift under _PIVOT_DRIFT of its thinnest half extent, and the turn under
         max_turn: a landing plank's end stays on the floor while it turns down
         (benchmarks/plank_landing.py)."""
+        thin, reach = np.full(len(t.keys), np.inf), np.zeros(len(t.keys))
+        np.minimum.at(thin, t.box_frame, t.half.min(axis=1))
+        np.maximum.at(reach, t.box_frame, t.radius)
         limit = np.full(len(t.keys), self.max_turn)
-        for f, boxes in enumerate(t.frame_boxes):
-            if len(boxes):
-                pivot = 2.0 * _PIVOT_DRIFT * float(t.half[boxes].min()) / float(t.radius[boxes].max())
-                limit[f] = min(self.max_turn, math.sqrt(pivot))
+        boxed = np.isfinite(thin)
+        limit[boxed] = np.minimum(self.max_turn, np.sqrt(2.0 * _PIVOT_DRIFT * thin[boxed] / reach[boxed]))
         return limit
 
     def _step_pieces(self):

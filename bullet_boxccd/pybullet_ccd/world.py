@@ -139,9 +139,11 @@ class World:
         """Read what changed since the last call; True if the tables were rebuilt."""
         j = self.journal
         count = raw.getNumBodies(physicsClientId=self.cid)
-        if self.tables is not None and count == self.count and j.reset <= self._seen:
-            if j.last_body <= self._seen and j.filters <= self._seen:
+        if self.tables is not None and j.reset <= self._seen:
+            if count == self.count and j.last_body <= self._seen and j.filters <= self._seen:
                 return False
+            # Bodies made or removed through pybullet's calls are in the journal; one it did
+            # not see made is not among those read yet, and one removed is not among the ids.
             dirty = [b for b, s in j.bodies.items() if s > self._seen]
         else:
             dirty = None  # read everything
