@@ -39,6 +39,7 @@ from contextlib import contextmanager
 import numpy as np
 import pybullet
 
+from .. import _core
 from .._arrays import as_float_array
 from ..motion import pose_matrix
 from ..solver import DEFAULT_TOLERANCES, InvalidInputError, Tolerances
@@ -175,7 +176,7 @@ class BoxCCD:
         # Frames of the contact the world was taken back to as the partial step began (acted),
         # and those of them struck by an impact then (its impulse acts whole at that start);
         # the frames a step stopped at an impact, struck as the next step begins.
-        self._acted, self._struck, self._struck_next = set(), set(), set()
+        self._acted, self._struck, self._struck_next, self._links_met = set(), set(), set(), set()
         self._turning = set()  # free frames an impact the world went back to set turning (see _step_pieces)
         self._clamp_candidates = set()  # frames swept as fast, or read at the velocity clamp, in the current (sub)step
         self._damped = (None, None)  # (when read, a body with a damped joint)
@@ -527,7 +528,8 @@ class BoxCCD:
                 events += [_shifted(e, offset + elapsed, dt) for e in found]
                 elapsed += tau * piece
                 if h - elapsed <= 1e-9 * h:
-                    self._struck_next |= self.contacts.met  # (impacts pybullet resolves as the next step begins)
+                    # (impacts pybullet resolves as the next step begins)
+                    self._struck_next |= self.contacts.met | self._links_met
                     break
                 # The world stands at ``elapsed``: simulate the rest from there, in pieces under
                 # the turn limit and ``hold``. After max_partial_steps of them no contact takes the
@@ -656,7 +658,7 @@ class BoxCCD:
         wrongly (returns (events, its time)); without, each such contact's bodies go back
         on their own (returns (events, 1))."""
         t = self.world.tables
-        self.contacts.met = set()
+        self.contacts.met, self._links_met = set(), set()
         if not len(t.half):
             return [], 1.0
         st = self._state
@@ -671,6 +673,11 @@ class BoxCCD:
         found = self._chains_find(h)
         if sw is None and jw is None and not found:
             return [], 1.0
+        # A link's contact met inside the step and left to pybullet that ends it overlapping is
+        # an impact pybullet resolves as the next step begins, as a free pair's (``contacts.met``).
+        self._links_met = {x for touch, act, _, initial, _, _, f, g, (a, b) in found
+                           if act is None and not initial and _core.paths_depth(a, b, 1.0) >= 0.0
+                           for x in (f, g)}
         t3 = time.perf_counter()
         if back:
             # One time order: the free bodies' contacts up to the earliest articulated one
@@ -702,7 +709,7 @@ class BoxCCD:
             _, pushed = self._chains.stop_each(found, st, h, self.stats)
             more, tau = self.contacts.resolve(_without(sw, pushed, t), jw, t, st, h, user_moved, self._gravity,
                                               False, struck=self._struck)
-            self._struck_next = self.contacts.struck
+            self._struck_next = self.contacts.struck | self._links_met
             events += more
         self.stats.seconds["rewind"] += time.perf_counter() - t3
         self.stats.contacts += len(events)
@@ -851,7 +858,8 @@ class BoxCCD:
             return []
         t0 = time.perf_counter()
         found = self._chains.find(h, self._state, self.fit_tolerance, self.tolerances,
-                                  self.penetration, self.stats, self._near_unswept if self._unswept else None)
+                                  self.penetration, self.stats, self._near_unswept if self._unswept else None,
+                                  (self.depth_tolerance, self.contacts.box_impact_depth))
         self.stats.seconds["solve"] += time.perf_counter() - t0
         return found
 

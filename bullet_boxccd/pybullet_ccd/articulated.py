@@ -76,6 +76,19 @@ class _Body:
     fast: bool = False  # whether a fast box of it was judged against a partner in the last step
 
 
+def _struck_free(hit, path, other, half, other_half, depth_tolerance, impact_depth):
+    """A link's contact with a free body, met inside the step and left to pybullet by
+    ``Articulated._judge``, that ends it deeper than ``depth_tolerance`` is an impact
+    pybullet resolves wrongly, as a free pair's: the struck body stood still in the overlap
+    that its motion from the touch on would have avoided. It is acted on from the time the
+    pair overlaps by the impact depth (``impact_depth(half, other_half)``)."""
+    touch, act, contact, initial, pressing = hit
+    if act is not None or initial or not _core.paths_depth(path, other, 1.0) > depth_tolerance:
+        return hit
+    at = _core.paths_first_depth(path, other, touch, impact_depth(half, other_half))
+    return hit if math.isnan(at) else (touch, at, contact, initial, pressing)
+
+
 class Articulated:
     """The articulated bodies of a world (see the module docstring)."""
 
@@ -239,12 +252,14 @@ class Articulated:
         return path
 
     # ------------------------------------------------------------ sweeping
-    def find(self, dt, state, fit_tolerance, tolerances, penetration, stats, near_unswept=None):
+    def find(self, dt, state, fit_tolerance, tolerances, penetration, stats, near_unswept=None, impact=None):
         """Sweep the fast link boxes. Returns their contacts in time order: [(touch, act at
         (None: pybullet's to resolve), (point, normal, feature), initial, pressing, body
         record, frame, partner frame, (path, partner path))]. ``near_unswept`` is told the
         shapes left to pybullet (``tables.unswept``) within the reach of a fast link box that
-        moves more than its smallest half extent (less cannot cross a shape of no thickness)."""
+        moves more than its smallest half extent (less cannot cross a shape of no thickness).
+        ``impact``: (depth_tolerance, the impact depth of two boxes' half extents) for
+        ``_struck_free``."""
         t = self.tables
         fast, through = [], []  # through: (frame, bounds) of those moving more than their smallest half extent
         for rec in self.watched:
@@ -280,6 +295,8 @@ class Articulated:
                     continue  # slow against each other (a link and its neighbour, a foot and the ground it rests on)
                 rec.fast = True
                 hit = self._judge(path, other, fit_tolerance, tolerances, penetration, stats)
+                if hit is not None and impact is not None and t.kind[g] == FREE:
+                    hit = _struck_free(hit, path, other, t.half[i], t.half[j], *impact)
                 if hit is not None:
                     found.append((*hit, rec, f, g, (path, other)))
         found.sort(key=lambda x: x[0])

@@ -461,7 +461,14 @@ class Contacts:
         deep)."""
         if paths.plane[i] or paths.plane[j]:
             return self.penetration
-        return max(self.penetration, min(self.impact_depth, IMPACT_SHARE * min(paths.thin[i], paths.thin[j])))
+        return self._depth_of(min(paths.thin[i], paths.thin[j]))
+
+    def box_impact_depth(self, half, other_half):
+        """The impact depth of two boxes (not planes) of half extents ``half``, ``other_half``."""
+        return self._depth_of(min(min(half), min(other_half)))
+
+    def _depth_of(self, thin):
+        return max(self.penetration, min(self.impact_depth, IMPACT_SHARE * float(thin)))
 
     def _judge(self, paths, i, j, lo, touch, back):
         """What the pair (rows i, j) needs: {"act_at": tau, "action": None | "back" | "stop"
