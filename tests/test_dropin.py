@@ -304,6 +304,45 @@ def test_kinematic_and_mocap_paddles_leave_no_cube_behind_and_never_stick(cid, m
         assert among < 0.005, (mode, seed, among)  # a pushed cube pushes the next: none inside another
 
 
+def _teleported_paddle(cid, use, fine=1, velocity=False):
+    """A mass-0 paddle (0.1 x 0.6 x 0.6 m) teleported along +x at 20 m/s for 0.04 s into two
+    free 0.1 m cubes 0.2 m apart (restitution 0.5 on all, no gravity): at every step of
+    DT, or of DT / fine in as many increments; with ``velocity``, given its velocity too.
+    Returns the cubes' x velocities after 0.06 s."""
+    reset(cid)
+    paddle = box(cid, [0.05, 0.3, 0.3], [-0.3, 0, 0], mass=0.0)
+    cubes = [box(cid, [0.05] * 3, [0.2 + 0.2 * i, 0.03 * i, 0]) for i in range(2)]
+    for body in [paddle] + cubes:
+        p.changeDynamics(body, -1, restitution=0.5, physicsClientId=cid)
+    ccd = BoxCCD(cid) if use else None
+    h = DT / fine
+    for k in range(round(0.06 / h)):
+        t = (k + 1) * h
+        p.resetBasePositionAndOrientation(paddle, [-0.3 + 20.0 * min(t, 0.04), 0, 0], [0, 0, 0, 1],
+                                          physicsClientId=cid)
+        if velocity:
+            p.resetBaseVelocity(paddle, [20.0 if t <= 0.04 + 1e-12 else 0.0, 0, 0], [0, 0, 0], physicsClientId=cid)
+        if fine > 1:
+            p.setTimeStep(h, physicsClientId=cid)
+        ccd.step() if ccd else p.stepSimulation(physicsClientId=cid)
+    return [p.getBaseVelocity(c, physicsClientId=cid)[0][0] for c in cubes]
+
+
+@pytest.mark.parametrize("velocity", [False, True])
+def test_a_teleported_paddle_pushes_as_pybullet_teleporting_it_in_fine_steps(cid, velocity):
+    """pybullet gives a body the user only teleports no velocity to rebound from: teleported
+    in 128 increments a step, the paddle of ``_teleported_paddle`` pushes the first cube out
+    of its overlap at its own 20 m/s, and that cube strikes the second with their
+    restitution. BoxCCD carries the first cube at the paddle's speed and the second leaves
+    the first as it strikes it, each within 3 % of 20 m/s of that; given its velocity too,
+    the paddle strikes with the restitution (plain pybullet at DT: both cubes pass through
+    or are left behind)."""
+    got = _teleported_paddle(cid, True, velocity=velocity)
+    ref = _teleported_paddle(cid, False, 128, velocity)
+    assert np.allclose(got, ref, atol=0.03 * 20.0), (got, ref)
+    assert not np.allclose(_teleported_paddle(cid, False, velocity=velocity), ref, atol=0.1 * 20.0)
+
+
 def test_partial_steps_taken_again_shorter_leave_the_rest_of_the_world_as_pybullet_moves_it(cid):
     """A mass-0 box given a velocity before every step (pybullet moves it by v dt) and a free
     box flying far away while a spinning cube strikes a wall corner first: the partial

@@ -50,8 +50,11 @@ state at the end of the step decides:
 
 Kinematic bodies (a fixed base the user teleports) cannot be taken back: a free body a
 teleport swept into is carried with it from the touch and leaves with the velocity of
-a collision with an immovable body moving as the kinematic one did (pybullet's
-combined restitution). Changing one body's path can make it meet another: the contacts
+a collision with an immovable body moving as the kinematic one did: without restitution
+(pybullet gives a body it is only teleported no velocity to rebound from, and at a fine
+step pushes what it moves into out of the overlap at its speed), with the pair's
+combined restitution where the user gave it a velocity too, and where a body riding
+with it strikes another (a row pushed). Changing one body's path can make it meet another: the contacts
 are taken in time order, and every pair of a body whose path changed is swept again
 from the change on, as in Box2D's time-of-impact loop.
 """
@@ -68,12 +71,12 @@ import numpy as np
 from .. import _core
 from ..motion import axis_angle_matrix, pose7, pose_matrix
 from ..solver import Outcome
-from ._hooks import raw
+from ._hooks import journal, raw
 from .events import CCDEvent
 from .layout import ANGULAR_VELOCITY, PATH_ROW, POSE, VELOCITY
 from .shapes import PLANE_HALF
 from .sweep import CREEP, ride_near
-from .world import FREE
+from .world import _MAXIMAL, FREE
 
 __all__ = ["Contacts", "place", "bounce"]
 
@@ -642,7 +645,7 @@ class Contacts:
                                                                 np.zeros(1))[0], [3]))
                 X = _carry(pair[0], tau, start)
                 normal = _moved_with(pair[0], tau, c.normal)
-                v = self._push_velocity(tables, state, dt, d, k, X[:3, 3], normal, state.rows[d, VELOCITY])
+                v = self._push_velocity(tables, state, dt, d, k, X[:3, 3], normal, state.rows[d, VELOCITY], pusher)
                 pushed[d] = (k, X, v)
                 for t, rows, met, contact in self._ride_touches(tables, state, dt, pair[0], tau, d, start,
                                                                 kinematic | set(pushed)):
@@ -680,12 +683,18 @@ class Contacts:
         return row
 
     # -------------------------------------------------------------- pushes
-    def _push_velocity(self, tables, state, dt, d, k, point, normal, v):
+    def _push_velocity(self, tables, state, dt, d, k, point, normal, v, by=None):
         """Frame d's velocity after a collision, at ``point`` along ``normal`` (from the
         pusher), with an immovable body moving as kinematic frame k moved over the whole
-        step (its jump and the step's own motion), its own velocity v before."""
+        step (its jump and the step's own motion), its own velocity v before. The collision
+        is with frame ``by`` (k if None; a body riding with k), with the pair's restitution,
+        but none with k itself if the user only teleports it: pybullet gives it no velocity
+        to rebound from, and at a fine step pushes what it moves into out of the overlap,
+        at its speed."""
         self.stats.pushes += 1
-        return bounce(self.cid, tables, d, k, v, self._kinematic_velocity(state, dt, k, point), normal)
+        by = k if by is None else by
+        elastic = by != k or k in state.with_velocity
+        return bounce(self.cid, tables, d, by, v, self._kinematic_velocity(state, dt, k, point), normal, elastic)
 
     @staticmethod
     def _kinematic_velocity(state, dt, k, point):
@@ -727,16 +736,21 @@ def place(cid, tables, state, f, pose, v, w):
                np.asarray(w, float)[None])
 
 
-def bounce(cid, tables, d, k, v, v_k, normal):
+def bounce(cid, tables, d, k, v, v_k, normal, elastic=True):
     """Frame d's velocity (v before) after a collision along ``normal`` (from the pusher)
-    with an immovable body moving at v_k there, frame k's: pybullet's combined
-    restitution on the approach, nothing if they part already."""
+    with an immovable body moving at v_k there, of frame k's restitution: pybullet's
+    combined restitution on the approach, raised by half the contact ERP as the converged
+    engine's rebound is on average (``BoxCCD._simulate``; not with a maximal-coordinate
+    body, whose position correction adds no velocity), none unless ``elastic``; nothing if
+    they part already."""
     v = np.array(v, float)
     if np.all(np.isfinite(normal)):
         approach = float(np.dot(v - v_k, normal))
         if approach < 0.0:
-            e = (raw.getDynamicsInfo(*tables.keys[d], physicsClientId=cid)[5] *
-                 raw.getDynamicsInfo(*tables.keys[k], physicsClientId=cid)[5])
+            e = 0.0
+            if elastic:
+                a, b = (raw.getDynamicsInfo(*tables.keys[f], physicsClientId=cid) for f in (d, k))
+                e = a[5] * b[5] + (0.5 * journal(cid).contact_erp if _MAXIMAL not in (a[10], b[10]) else 0.0)
             v = v - (1.0 + e) * approach * normal
     return v
 
