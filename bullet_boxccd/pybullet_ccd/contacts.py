@@ -51,12 +51,12 @@ state at the end of the step decides:
 Kinematic bodies (a fixed base the user teleports) cannot be taken back: a free body a
 teleport swept into is carried with it from the touch and leaves with the velocity of
 a collision with an immovable body moving as the kinematic one did: without restitution
-(pybullet gives a body it is only teleported no velocity to rebound from, and at a fine
-step pushes what it moves into out of the overlap at its speed), with the pair's
-combined restitution where the user gave it a velocity too, and where a body riding
-with it strikes another (a row pushed). Changing one body's path can make it meet another: the contacts
-are taken in time order, and every pair of a body whose path changed is swept again
-from the change on, as in Box2D's time-of-impact loop.
+(pybullet gives a body it only teleports no velocity to rebound from, and at a fine step
+pushes what it moves into out of the overlap at its speed), with the pair's combined
+restitution where the user gave it a velocity too, and where a body riding with it
+strikes another (a row pushed). Changing one body's path can make it meet another: the
+contacts are taken in time order, and every pair of a body whose path changed is swept
+again from the change on, as in Box2D's time-of-impact loop.
 """
 
 from __future__ import annotations
@@ -76,7 +76,7 @@ from .events import CCDEvent
 from .layout import ANGULAR_VELOCITY, PATH_ROW, POSE, VELOCITY
 from .shapes import PLANE_HALF
 from .sweep import CREEP, ride_near
-from .world import _MAXIMAL, FREE
+from .world import FREE, MAXIMAL_TYPE
 
 __all__ = ["Contacts", "place", "bounce"]
 
@@ -750,7 +750,7 @@ def bounce(cid, tables, d, k, v, v_k, normal, elastic=True):
             e = 0.0
             if elastic:
                 a, b = (raw.getDynamicsInfo(*tables.keys[f], physicsClientId=cid) for f in (d, k))
-                e = a[5] * b[5] + (0.5 * journal(cid).contact_erp if _MAXIMAL not in (a[10], b[10]) else 0.0)
+                e = a[5] * b[5] + (0.5 * journal(cid).contact_erp if MAXIMAL_TYPE not in (a[10], b[10]) else 0.0)
             v = v - (1.0 + e) * approach * normal
     return v
 

@@ -51,7 +51,8 @@ _GEOMETRY = {pybullet.GEOM_SPHERE: "sphere", pybullet.GEOM_CAPSULE: "capsule", p
              pybullet.GEOM_MESH: "mesh", pybullet.GEOM_PLANE: "plane", pybullet.GEOM_HEIGHTFIELD: "heightfield"}
 # Names pybullet's MJCF importer gives: a body's fixed joint, an unnamed body's link.
 _MJCF_JOINT, _MJCF_LINK = re.compile(r"jointfix_\d+_-?\d+$"), re.compile(r"link\d+_\d+$")
-_MAXIMAL, _SOFT = 1, 3  # getDynamicsInfo(...)[10]: the body's type
+# getDynamicsInfo(...)[10], the body's type: a rigid body (maximal coordinates), a soft body.
+MAXIMAL_TYPE, _SOFT = 1, 3
 
 
 @dataclass
@@ -228,7 +229,7 @@ class World:
     def _read_body(self, b) -> _Body:
         cid = self.cid
         info = raw.getDynamicsInfo(b, -1, physicsClientId=cid)
-        rec = _Body(maximal=info[10] == _MAXIMAL)
+        rec = _Body(maximal=info[10] == MAXIMAL_TYPE)
         if info[10] == _SOFT:
             rec.left.append((-1, "soft body"))
             rec.moves = "soft"
