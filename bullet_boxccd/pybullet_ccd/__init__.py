@@ -693,8 +693,13 @@ class BoxCCD:
                 if self.contacts.acted:
                     self._acted, self._struck = self.contacts.acted, self.contacts.struck
                 else:
-                    self._acted, self._struck = links_acted, set()
+                    # A link's impact on a free body (met inside the step) is struck as a free
+                    # pair's is: its bodies keep its impulse whole where the world goes back
+                    # within the partial step it begins. A press is not, nor a robot's landing on
+                    # what does not move (kept whole, its motors' and joints' solve pumps it).
                     first = min((x for x in found if x[1] == tau_links), key=lambda x: x[0])
+                    impact = not first[3] and t.kind[first[7]] == FREE
+                    self._acted, self._struck = links_acted, links_acted if impact else set()
                     if first[3]:
                         key = (first[6], first[7])
                         self._presses[key] = self._presses.get(key, 0) + 1
