@@ -43,7 +43,7 @@ from .. import _core
 from .._arrays import as_float_array
 from ..motion import pose_matrix
 from ..solver import DEFAULT_TOLERANCES, InvalidInputError, Tolerances
-from ._hooks import MAX_VELOCITY, last_serial, raw, replay_impulses
+from ._hooks import MAX_VELOCITY, last_serial, position_motors, raw, replay_impulses
 from .articulated import Articulated
 from .contacts import Contacts
 from .events import BoxCCDWarning, CCDEvent, CCDStats, ClientDisconnectedError, not_finite_message
@@ -66,6 +66,8 @@ _PARTIAL_STEPS = (8, 32)
 # A body pivoting on a contact turns in one stepSimulation by no more than keeps the drift of
 # the point it pivots on under this share of its thinnest half extent (see _turn_limits).
 _PIVOT_DRIFT = 0.25
+# pybullet's position motor's defaults: its position gain and its force (N or N m).
+_POSITION_GAIN, _MOTOR_FORCE = 0.1, 100000.0
 
 
 class BoxCCD:
@@ -172,6 +174,7 @@ class BoxCCD:
         self._quiet, self._epoch = False, -1  # whether a step may skip every check (see step)
         self._known = False  # whether the frame-state rows hold the velocities the next step starts from
         self._partial = False  # whether the world is set for a partial step (its time step and contact ERP)
+        self._motors = {}  # the user's position motors given again for the partial steps (_take)
         self._spent = 0  # partial steps and pieces taken in the current step (at most _partial_steps)
         # Frames of the contact the world was taken back to as the partial step began (acted),
         # and those of them struck by an impact then (its impulse acts whole at that start);
@@ -516,7 +519,7 @@ class BoxCCD:
                     self._simulate(impacts)
                     self._state.read_velocities()
                     if 0 < k and self._spent <= self._partial_steps:  # (not the very last piece: see below)
-                        piece = self._within_clamp(piece, h, impacts)
+                        piece = self._within_clamp(piece, h, elapsed, impacts)
                 t_sim = time.perf_counter()
                 self.stats.seconds["step"] += t_sim - t_start
                 back = self._spent < self._partial_steps
@@ -548,13 +551,15 @@ class BoxCCD:
                 piece = self._piece(h - elapsed, hold) if back else h - elapsed
                 self.stats.partial_steps += 1
                 self._spent += 1
-                self._take(piece, h)
+                self._take(piece, h, elapsed)
                 t_start = time.perf_counter()
                 k += 1
         finally:
             if self._partial:
                 raw.setPhysicsEngineParameter(fixedTimeStep=h, contactERP=self.world.journal.contact_erp,
                                               physicsClientId=self.cid)
+                if self._motors:
+                    self._motors_back(h)
                 self._partial = False
         self._name_clamped()
         return events
@@ -597,15 +602,43 @@ class BoxCCD:
             for b, link in raised:
                 raw.changeDynamics(b, link, restitution=own[b, link], physicsClientId=cid)
 
-    def _take(self, piece, h):
-        """Set the world to take a partial step of ``piece`` seconds of the user's step of h:
-        its contact ERP scaled by piece / h, so that the speed at which pybullet's solver
-        pushes an overlap out (ERP times depth over the step) is the user's step's, not
-        larger by h / piece; and the user's forces, which pybullet cleared, given again."""
+    def _take(self, piece, h, start):
+        """Set the world to take a partial step of ``piece`` seconds from ``start`` into the
+        user's step of h: its contact ERP scaled by piece / h, so that the speed at which
+        pybullet's solver pushes an overlap out (ERP times depth over the step) is the user's
+        step's, not larger by h / piece; the user's forces, which pybullet cleared, given
+        again; and the user's position motors given again so that each asks for the
+        velocity it asked for over the step. pybullet's position motor drives its joint at
+        gain x error / step (a tenth of the step: ten times as fast), and fixes its largest
+        impulse at force x step when the command is given: a joint that followed the step's
+        motion from its start is at error x (1 - gain x s) a share s into it, so the gain is
+        scaled by (piece / h) / (1 - gain x s) (by piece / h where that is not above 0),
+        the force by the user's step / piece."""
         self._partial = True
+        cid = self.cid
         raw.setPhysicsEngineParameter(fixedTimeStep=piece, contactERP=self.world.journal.contact_erp * piece / h,
-                                      physicsClientId=self.cid)
-        replay_impulses(self.cid, self.world.journal.impulses)
+                                      physicsClientId=cid)
+        self._motors = position_motors(cid)
+        s = start / h
+        for (b, joint), kw in self._motors.items():
+            gain = kw.get("positionGain", _POSITION_GAIN)
+            left = 1.0 - gain * s
+            raw.setJointMotorControl2(b, joint, pybullet.POSITION_CONTROL, physicsClientId=cid, **dict(
+                kw, positionGain=gain * piece / h / (left if left > 1e-6 else 1.0),
+                force=kw.get("force", _MOTOR_FORCE) * self._dt / piece))
+        replay_impulses(cid, self.world.journal.impulses)
+
+    def _motors_back(self, h):
+        """The user's position motors given again as the user gave them (at the user's step,
+        which fixes their largest impulse), once a step taken in partial steps is done; the
+        world left at a step of h."""
+        cid = self.cid
+        raw.setPhysicsEngineParameter(fixedTimeStep=self._dt, physicsClientId=cid)
+        for (b, joint), kw in self._motors.items():
+            raw.setJointMotorControl2(b, joint, pybullet.POSITION_CONTROL, physicsClientId=cid, **kw)
+        if h != self._dt:
+            raw.setPhysicsEngineParameter(fixedTimeStep=h, physicsClientId=cid)
+        self._motors = {}
 
     def _piece(self, rest, hold):
         """The next partial step's length: the rest of the step, or an even share of it, so
@@ -628,12 +661,13 @@ class BoxCCD:
         x, y, z = self._state.rows[f, ANGULAR_VELOCITY].tolist()
         return math.sqrt(x * x + y * y + z * z) / self._turn_limit[f]
 
-    def _within_clamp(self, piece, h, impacts):
+    def _within_clamp(self, piece, h, start, impacts):
         """After a partial step of ``piece`` seconds: if the impact at its start spun a body of
         the contact past its turn limit in it, the world goes back to the partial step's
         start (every body where its path has it then, with the velocities it started with)
         and takes a partial step short enough for that spin, once (its velocities read; the
-        ``impacts`` it began with resolved again as ``_simulate`` does). Returns its length."""
+        ``impacts`` it began with resolved again as ``_simulate`` does; ``start``: when it
+        began, seconds into the step of h). Returns its length."""
         st = self._state
         turns = self._turn_rate() * piece
         if turns <= 1.0 + 1e-9 or st.twist0 is None:
@@ -643,7 +677,7 @@ class BoxCCD:
         self._chains.stop_all(0.0, st)
         self._others.back(piece, 0.0, self._gravity)
         piece /= math.ceil(turns)
-        self._take(piece, h)
+        self._take(piece, h, start)
         st.begin(True)
         self._simulate(impacts)
         st.fresh = set()  # the poses read or placed before this step are not its end

@@ -35,8 +35,8 @@ import pybullet
 
 from .. import _core
 
-__all__ = ["Journal", "journal", "raw", "install", "new_serial", "last_serial", "replay_impulses", "WRAPPED",
-           "SIGNATURES", "bind", "shape_type", "MjcfLoad", "OR_MODE", "DAMPING", "damping"]
+__all__ = ["Journal", "journal", "raw", "install", "new_serial", "last_serial", "replay_impulses", "position_motors",
+           "WRAPPED", "SIGNATURES", "bind", "shape_type", "MjcfLoad", "OR_MODE", "DAMPING", "damping"]
 
 # pybullet's default contactERP (the share of a contact's penetration its solver removes in a
 # step, as a velocity of erp depth / dt): measured, setting 0.08 leaves every world bit-identical.
@@ -143,6 +143,9 @@ class Journal:
     # Body -> {link: GEOM_* type} of the shapes createMultiBody gave it, where the journal
     # saw them made (createCollisionShape).
     link_geometry: dict = field(default_factory=dict)
+    # (body, joint) -> (setJointMotorControl2's keyword arguments, serial) of the joint's
+    # latest command, where it is a one-degree position motor (``position_motors``).
+    motors: dict = field(default_factory=dict)
 
     def clear(self):
         fresh = Journal()
@@ -715,7 +718,63 @@ def _motor(name):
             j.pd_control = True
         elif mode == pybullet.TORQUE_CONTROL:
             j.impulses.append(("call", (name, a)))  # the joint torques, cleared after each step
+        _motor_calls.append((name, None, a, _serial.last))
     return on
+
+
+# Motor calls in the order made, with the serial current then: the position and velocity
+# motors of robot code, given at every step, unbound (``_wrap``), the others bound. They
+# are read into each client's ``Journal.motors`` when asked for, or when they pile up.
+_motor_calls: list = []
+_MOTOR_CALLS_HELD = 4096
+# setJointMotorControl2's keyword arguments and setJointMotorControlArray's for the same.
+_MOTOR_KEYS = (("targetPosition", "targetPositions"), ("targetVelocity", "targetVelocities"),
+               ("force", "forces"), ("positionGain", "positionGains"), ("velocityGain", "velocityGains"),
+               ("maxVelocity", None))
+
+
+def _read_motor_calls():
+    """Fold the motor calls made since the last fold into their clients' ``motors``: a
+    joint's one-degree POSITION_CONTROL command (setJointMotorControl2 or Array) is kept
+    with the serial current when it was given; any other command to the joint drops it.
+    A call made before its body was removed or its world reset is dropped."""
+    calls = _motor_calls[:]
+    del _motor_calls[:]
+    for name, args, kwargs, serial in calls:
+        a = kwargs if args is None else bind(name, args, kwargs)
+        j = _journals.get(_cid(a))
+        if j is None:
+            continue
+        try:
+            body, mode = int(a["bodyUniqueId"]), int(a["controlMode"])
+            if j.reset > serial or j.renewed.get(body, 0) > serial:
+                continue
+            if name.endswith("Array"):
+                joints = [int(k) for k in a["jointIndices"]]
+                given = [[(one, a[many][i]) for one, many in _MOTOR_KEYS if many and a.get(many) is not None]
+                         for i in range(len(joints))]
+            else:
+                joints = [int(a["jointIndex"])]
+                given = [[(one, a[one]) for one, _ in _MOTOR_KEYS if a.get(one) is not None]]
+        except (KeyError, TypeError, ValueError, IndexError):  # pybullet refused it too
+            continue
+        keep = mode == pybullet.POSITION_CONTROL and "MultiDof" not in name
+        for joint, kw in zip(joints, given):
+            if keep:
+                j.motors[body, joint] = ({k: float(v) for k, v in kw}, serial)
+            else:
+                j.motors.pop((body, joint), None)
+
+
+def position_motors(cid: int) -> dict:
+    """{(body, joint): setJointMotorControl2's keyword arguments} of the one-degree position
+    motors the user gave client ``cid``'s bodies that are still in its world."""
+    _read_motor_calls()
+    j = journal(cid)
+    gone = [k for k, (_, serial) in j.motors.items() if j.reset > serial or j.renewed.get(k[0], 0) > serial]
+    for k in gone:
+        del j.motors[k]
+    return {k: kw for k, (kw, _) in j.motors.items()}
 
 
 def _frame(cid, b, link):
@@ -874,6 +933,10 @@ def _wrap(name, original, note):
         if silent is None or not silent(args, kwargs):
             a = bind(name, args, kwargs)
             note(_cid(a), a, result)
+        else:
+            _motor_calls.append((name, args, kwargs, _serial.last))
+            if len(_motor_calls) > _MOTOR_CALLS_HELD:
+                _read_motor_calls()
         return result
 
     return _core.as_builtin(wrapper, name, original.__doc__ or "")
