@@ -304,6 +304,23 @@ def test_a_cube_striking_a_hinged_door_swings_it_as_pybullet_at_a_fine_step(cid)
     assert max(errors) < 0.15, errors
 
 
+def _run(cid, use_ccd, K, phase, steps, a, b):
+    """Take ``steps`` steps of 1/240 s: BoxCCD's, or plain pybullet's in K steps each after a
+    first step of ``phase`` of one (shifting the reference's step grid). Returns the
+    deepest overlap of bodies a and b where a step of 1/240 s ends."""
+    if phase:
+        p.setTimeStep(phase / 240 / K, physicsClientId=cid)
+        p.stepSimulation(physicsClientId=cid)
+        p.setTimeStep(1 / 240 / K, physicsClientId=cid)
+    ccd = BoxCCD(cid) if use_ccd else None
+    deepest = 0.0
+    for _ in range(steps):
+        for _ in range(1 if ccd else K):
+            ccd.step() if ccd else p.stepSimulation(physicsClientId=cid)
+        deepest = max([deepest] + [-c[8] for c in p.getClosestPoints(a, b, 0.0, physicsClientId=cid)])
+    return deepest
+
+
 def _gripper_close(cid, use_ccd, K=1, phase=0.0):
     """Two prismatic box fingers (0.2 kg, 2 x 6 x 8 cm) closing at 4 m/s each under velocity
     motors (200 N) on a free 4 cm, 0.1 kg cube 1 cm off their centre (no gravity, friction
@@ -328,16 +345,7 @@ def _gripper_close(cid, use_ccd, K=1, phase=0.0):
     cube = p.createMultiBody(0.1, shape([0.02] * 3), -1, [0.01, 0, 0], physicsClientId=cid)
     p.changeDynamics(cube, -1, restitution=0, lateralFriction=1, linearDamping=0, angularDamping=0,
                      maxJointVelocity=1000, physicsClientId=cid)
-    if phase:  # a first, shorter step shifts the reference's step grid
-        p.setTimeStep(phase / 240 / K, physicsClientId=cid)
-        p.stepSimulation(physicsClientId=cid)
-        p.setTimeStep(1 / 240 / K, physicsClientId=cid)
-    ccd = BoxCCD(cid) if use_ccd else None
-    deepest = 0.0
-    for _ in range(19):
-        for _ in range(K):
-            ccd.step() if ccd else p.stepSimulation(physicsClientId=cid)
-        deepest = max([deepest] + [-c[8] for c in p.getClosestPoints(hand, cube, 0.0, physicsClientId=cid)])
+    deepest = _run(cid, use_ccd, K, phase, 19, hand, cube)
     return p.getBasePositionAndOrientation(cube, physicsClientId=cid)[0][0], \
         p.getBaseVelocity(cube, physicsClientId=cid)[0][0], deepest
 
@@ -385,16 +393,7 @@ def _pendulum_strike(cid, use_ccd, K=1, phase=0.0):
     p.resetJointState(pendulum, 0, 0.5, -8.0, physicsClientId=cid)
     cube = p.createMultiBody(1.0, shape([0.05] * 3), -1, [0.0525, 0, 0.05], physicsClientId=cid)
     dynamics(cube, -1)
-    if phase:  # a first, shorter step shifts the reference's step grid
-        p.setTimeStep(phase / 240 / K, physicsClientId=cid)
-        p.stepSimulation(physicsClientId=cid)
-        p.setTimeStep(1 / 240 / K, physicsClientId=cid)
-    ccd = BoxCCD(cid) if use_ccd else None
-    deepest = 0.0
-    for _ in range(30):
-        for _ in range(K):
-            ccd.step() if ccd else p.stepSimulation(physicsClientId=cid)
-        deepest = max([deepest] + [-c[8] for c in p.getClosestPoints(pendulum, cube, 0.0, physicsClientId=cid)])
+    deepest = _run(cid, use_ccd, K, phase, 30, pendulum, cube)
     return p.getBaseVelocity(cube, physicsClientId=cid)[0][0], deepest
 
 
@@ -438,13 +437,7 @@ def _arm_strike(cid, use_ccd, K=1, phase=0.0):
     cube = p.createMultiBody(0.2, shape([0.025] * 3), -1, [0.45, 0.06, 0], physicsClientId=cid)
     p.changeDynamics(cube, -1, restitution=0.5, lateralFriction=0.5, linearDamping=0, angularDamping=0,
                      maxJointVelocity=1000, physicsClientId=cid)
-    if phase:  # a first, shorter step shifts the reference's step grid
-        p.setTimeStep(phase / 240 / K, physicsClientId=cid)
-        p.stepSimulation(physicsClientId=cid)
-        p.setTimeStep(1 / 240 / K, physicsClientId=cid)
-    ccd = BoxCCD(cid) if use_ccd else None
-    for _ in range(14 * K):
-        ccd.step() if ccd else p.stepSimulation(physicsClientId=cid)
+    _run(cid, use_ccd, K, phase, 14, arm, cube)
     return np.array(p.getBaseVelocity(cube, physicsClientId=cid)[0][:2])
 
 
