@@ -411,21 +411,29 @@ def test_a_swinging_link_striking_a_free_cube_inside_a_step_is_taken_back_to(cid
     assert _pendulum_strike(cid, False)[1] > 0.02  # plain pybullet: 2.3 cm deep
 
 
+def _two_link_arm(cid, base, half_thickness, offset):
+    """(a box-shape maker, a fixed-base arm at the origin: a cubic base of half extent
+    ``base``, two 0.3 m, 1 kg box links of square section ``half_thickness``, revolute
+    about z, the first ``offset`` along x from the base)."""
+    shape = lambda half, at=(0, 0, 0): p.createCollisionShape(p.GEOM_BOX, halfExtents=half,  # noqa: E731
+                                                              collisionFramePosition=at, physicsClientId=cid)
+    link = shape([0.15, half_thickness, half_thickness], [0.15, 0, 0])
+    arm = p.createMultiBody(0, shape([base] * 3), -1, [0, 0, 0], linkMasses=[1, 1],
+                            linkCollisionShapeIndices=[link, link], linkVisualShapeIndices=[-1, -1],
+                            linkPositions=[[offset, 0, 0], [0.3, 0, 0]], linkOrientations=[[0, 0, 0, 1]] * 2,
+                            linkInertialFramePositions=[[0.15, 0, 0]] * 2,
+                            linkInertialFrameOrientations=[[0, 0, 0, 1]] * 2, linkParentIndices=[0, 1],
+                            linkJointTypes=[p.JOINT_REVOLUTE] * 2, linkJointAxis=[[0, 0, 1]] * 2, physicsClientId=cid)
+    return shape, arm
+
+
 def _arm_strike(cid, use_ccd, K=1, phase=0.0):
     """A fixed-base two-link box arm (links 0.3 x 0.06 x 0.06 m, 1 kg, restitution 0.5) in a
     horizontal plane, its shoulder's velocity motor at 40 rad/s (500 N m), its elbow held,
     swinging into a free 5 cm, 0.2 kg cube (restitution 0.5) at 18 m/s. Returns the cube's
     velocity in the plane after 0.06 s."""
     _world(cid, 1 / 240 / K)
-    shape = lambda half, at=(0, 0, 0): p.createCollisionShape(p.GEOM_BOX, halfExtents=half,  # noqa: E731
-                                                              collisionFramePosition=at, physicsClientId=cid)
-    link = shape([0.15, 0.03, 0.03], [0.15, 0, 0])
-    arm = p.createMultiBody(0, shape([0.03] * 3), -1, [0, 0, 0], linkMasses=[1, 1],
-                            linkCollisionShapeIndices=[link, link], linkVisualShapeIndices=[-1, -1],
-                            linkPositions=[[0, 0, 0], [0.3, 0, 0]], linkOrientations=[[0, 0, 0, 1]] * 2,
-                            linkInertialFramePositions=[[0.15, 0, 0]] * 2,
-                            linkInertialFrameOrientations=[[0, 0, 0, 1]] * 2, linkParentIndices=[0, 1],
-                            linkJointTypes=[p.JOINT_REVOLUTE] * 2, linkJointAxis=[[0, 0, 1]] * 2, physicsClientId=cid)
+    shape, arm = _two_link_arm(cid, 0.03, 0.03, 0.0)
     for j in (-1, 0, 1):
         p.changeDynamics(arm, j, linearDamping=0, angularDamping=0, maxJointVelocity=1000, jointDamping=0,
                          physicsClientId=cid)
@@ -461,15 +469,7 @@ def _position_arm_beside_a_strike(cid, use_ccd, gain):
     thrown at 100 m/s strikes a 1 cm wall 3 m away in the third step. Returns the arm's
     joint positions and velocities after each step, and the BoxCCD (or None)."""
     _world(cid, 1 / 60)
-    shape = lambda half, at=(0, 0, 0): p.createCollisionShape(p.GEOM_BOX, halfExtents=half,  # noqa: E731
-                                                              collisionFramePosition=at, physicsClientId=cid)
-    link = shape([0.15, 0.02, 0.02], [0.15, 0, 0])
-    arm = p.createMultiBody(0, shape([0.05] * 3), -1, [0, 0, 0], linkMasses=[1, 1],
-                            linkCollisionShapeIndices=[link, link], linkVisualShapeIndices=[-1, -1],
-                            linkPositions=[[0.05, 0, 0], [0.3, 0, 0]], linkOrientations=[[0, 0, 0, 1]] * 2,
-                            linkInertialFramePositions=[[0.15, 0, 0]] * 2,
-                            linkInertialFrameOrientations=[[0, 0, 0, 1]] * 2, linkParentIndices=[0, 1],
-                            linkJointTypes=[p.JOINT_REVOLUTE] * 2, linkJointAxis=[[0, 0, 1]] * 2, physicsClientId=cid)
+    shape, arm = _two_link_arm(cid, 0.05, 0.02, 0.05)
     p.createMultiBody(0, shape([0.005, 1, 1]), -1, [2.5, 3, 0], physicsClientId=cid)
     cube = p.createMultiBody(1, shape([0.05] * 3), -1, [2.5 - 0.055 - 100 / 60 * 2.4, 3, 0], physicsClientId=cid)
     p.changeDynamics(cube, -1, linearDamping=0, angularDamping=0, maxJointVelocity=1000, physicsClientId=cid)
