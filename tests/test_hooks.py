@@ -703,3 +703,28 @@ def test_a_time_step_set_again_alike_is_no_change_of_the_world():
         assert p.getPhysicsEngineParameters(physicsClientId=cid)["fixedTimeStep"] == 0.01
     finally:
         p.disconnect(cid)
+
+
+def test_position_motors_are_the_latest_one_degree_position_commands_of_bodies_still_there():
+    """What partial steps give again: each joint's latest command where it is a position
+    motor given through setJointMotorControl2 or setJointMotorControlArray, in every call
+    form; a velocity command after it, or a removal of its body, drops it."""
+    cid = p.connect(p.DIRECT)
+    try:
+        kuka = os.path.join(pybullet_data.getDataPath(), "kuka_iiwa", "model.urdf")
+        arm = p.loadURDF(kuka, useFixedBase=True, physicsClientId=cid)
+        other = p.loadURDF(kuka, [2, 0, 0], useFixedBase=True, physicsClientId=cid)
+        p.setJointMotorControlArray(arm, range(7), p.POSITION_CONTROL, [0.1] * 7, forces=[50] * 7,
+                                    physicsClientId=cid)
+        p.setJointMotorControl2(arm, 2, p.POSITION_CONTROL, 0.3, 0.0, 80, 0.5, physicsClientId=cid)
+        p.setJointMotorControl2(bodyIndex=arm, jointIndex=4, controlMode=p.VELOCITY_CONTROL, targetVelocity=1.0,
+                                physicsClientId=cid)
+        p.setJointMotorControlArray(other, [0, 1], p.POSITION_CONTROL, targetPositions=[0.2, 0.2], physicsClientId=cid)
+        motors = _hooks.position_motors(cid)
+        assert motors[arm, 0] == {"targetPosition": 0.1, "force": 50.0}
+        assert motors[arm, 2] == {"targetPosition": 0.3, "targetVelocity": 0.0, "force": 80.0, "positionGain": 0.5}
+        assert (arm, 4) not in motors and (other, 0) in motors
+        p.removeBody(other, physicsClientId=cid)
+        assert sorted(_hooks.position_motors(cid)) == [(arm, j) for j in (0, 1, 2, 3, 5, 6)]
+    finally:
+        p.disconnect(cid)

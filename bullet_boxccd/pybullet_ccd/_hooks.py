@@ -718,15 +718,42 @@ def _motor(name):
             j.pd_control = True
         elif mode == pybullet.TORQUE_CONTROL:
             j.impulses.append(("call", (name, a)))  # the joint torques, cleared after each step
-        _motor_calls.append((name, None, a, _serial.last))
+        joints = a.get("jointIndices", a.get("jointIndex"))
+        _note_motor_call((name, a.get("bodyUniqueId"), tuple(joints) if name.endswith("Array") else joints, cid),
+                         (name, None, a, _serial.last))
     return on
 
 
-# Motor calls in the order made, with the serial current then: the position and velocity
-# motors of robot code, given at every step, unbound (``_wrap``), the others bound. They
-# are read into each client's ``Journal.motors`` when asked for, or when they pile up.
-_motor_calls: list = []
+# Motor calls, with the serial current when made, each the latest of its function, body,
+# joints and client, in the order of those latest calls: the position and velocity motors
+# of robot code, given at every step, unbound (``_wrap``), the others bound. They are read
+# into each client's ``Journal.motors`` when asked for, or when many different ones pile up.
+_motor_calls: dict = {}
 _MOTOR_CALLS_HELD = 4096
+_CID_AT = {"setJointMotorControl2": 9, "setJointMotorControlArray": 8, "setJointMotorControlMultiDof": 10,
+           "setJointMotorControlMultiDofArray": 9}  # where a positional physicsClientId stands
+
+
+def _note_motor_call(key, call):
+    _motor_calls.pop(key, None)
+    _motor_calls[key] = call
+    if len(_motor_calls) > _MOTOR_CALLS_HELD:
+        _read_motor_calls()
+
+
+def _unbound_motor_call(name, args, kwargs):
+    """Keep a motor call of a silent mode as given: keyed by its function, body, joints and
+    client where they stand where robot code puts them (else by the call alone)."""
+    try:
+        if len(args) < 2 or len(args) > _CID_AT[name] + 1:
+            raise TypeError
+        joints = tuple(args[1]) if name.endswith("Array") else args[1]
+        cid = args[-1] if len(args) == _CID_AT[name] + 1 else kwargs.get("physicsClientId", 0)
+        key = (name, args[0], joints, cid)
+        hash(key)
+    except (TypeError, KeyError):
+        key = object()
+    _note_motor_call(key, (name, args, kwargs, _serial.last))
 # setJointMotorControl2's keyword arguments and setJointMotorControlArray's for the same.
 _MOTOR_KEYS = (("targetPosition", "targetPositions"), ("targetVelocity", "targetVelocities"),
                ("force", "forces"), ("positionGain", "positionGains"), ("velocityGain", "velocityGains"),
@@ -738,8 +765,8 @@ def _read_motor_calls():
     joint's one-degree POSITION_CONTROL command (setJointMotorControl2 or Array) is kept
     with the serial current when it was given; any other command to the joint drops it.
     A call made before its body was removed or its world reset is dropped."""
-    calls = _motor_calls[:]
-    del _motor_calls[:]
+    calls = list(_motor_calls.values())
+    _motor_calls.clear()
     for name, args, kwargs, serial in calls:
         a = kwargs if args is None else bind(name, args, kwargs)
         j = _journals.get(_cid(a))
@@ -934,9 +961,7 @@ def _wrap(name, original, note):
             a = bind(name, args, kwargs)
             note(_cid(a), a, result)
         else:
-            _motor_calls.append((name, args, kwargs, _serial.last))
-            if len(_motor_calls) > _MOTOR_CALLS_HELD:
-                _read_motor_calls()
+            _unbound_motor_call(name, args, kwargs)
         return result
 
     return _core.as_builtin(wrapper, name, original.__doc__ or "")
