@@ -556,10 +556,10 @@ class BoxCCD:
                 k += 1
         finally:
             if self._partial:
+                if self._motors:
+                    self._motors_back()
                 raw.setPhysicsEngineParameter(fixedTimeStep=h, contactERP=self.world.journal.contact_erp,
                                               physicsClientId=self.cid)
-                if self._motors:
-                    self._motors_back(h)
                 self._partial = False
         self._name_clamped()
         return events
@@ -628,16 +628,13 @@ class BoxCCD:
                 force=kw.get("force", _MOTOR_FORCE) * self._dt / piece))
         replay_impulses(cid, self.world.journal.impulses)
 
-    def _motors_back(self, h):
-        """The user's position motors given again as the user gave them (at the user's step,
-        which fixes their largest impulse), once a step taken in partial steps is done; the
-        world left at a step of h."""
+    def _motors_back(self):
+        """The user's position motors given again as the user gave them, at the user's step
+        (which fixes their largest impulse), once a step taken in partial steps is done."""
         cid = self.cid
         raw.setPhysicsEngineParameter(fixedTimeStep=self._dt, physicsClientId=cid)
         for (b, joint), kw in self._motors.items():
             raw.setJointMotorControl2(b, joint, pybullet.POSITION_CONTROL, physicsClientId=cid, **kw)
-        if h != self._dt:
-            raw.setPhysicsEngineParameter(fixedTimeStep=h, physicsClientId=cid)
         self._motors = {}
 
     def _piece(self, rest, hold):

@@ -754,6 +754,8 @@ def _unbound_motor_call(name, args, kwargs):
     except (TypeError, KeyError):
         key = object()
     _note_motor_call(key, (name, args, kwargs, _serial.last))
+
+
 # setJointMotorControl2's keyword arguments and setJointMotorControlArray's for the same.
 _MOTOR_KEYS = (("targetPosition", "targetPositions"), ("targetVelocity", "targetVelocities"),
                ("force", "forces"), ("positionGain", "positionGains"), ("velocityGain", "velocityGains"),

@@ -772,18 +772,23 @@ def _moved_with(row, s, v):
     return axis_angle_matrix(row[PATH_ROW["axis"]], (1.0 - s) * row[PATH_ROW["angle"]][0]) @ v
 
 
+def _frame_of(row):
+    """The frame of path row ``row`` as a path row of its own (its box at the frame)."""
+    frame = row.copy()
+    frame[PATH_ROW["box_in_frame"]] = _IDENTITY
+    return frame
+
+
 def _rider(row, tau, com):
     """(the frame of path row ``row`` as a path row of its own, centre-of-mass pose ``com``
     (4, 4) at tau in that frame): what a body riding with the frame from tau on needs."""
-    frame = row.copy()
-    frame[PATH_ROW["box_in_frame"]] = _IDENTITY
+    frame = _frame_of(row)
     return frame, np.linalg.inv(_core.row_poses(frame[None], np.array([tau]))[0]) @ com
 
 
 def _carry(row, tau, X):
     """Pose X (4, 4) at tau moved rigidly with the frame of path row ``row`` to its end."""
-    frame = row.copy()
-    frame[PATH_ROW["box_in_frame"]] = _IDENTITY
+    frame = _frame_of(row)
     F_tau, F_1 = _core.row_poses(np.stack([frame, frame]), np.array([tau, 1.0]))
     return F_1 @ np.linalg.solve(F_tau, X)
 
