@@ -76,7 +76,7 @@ from .events import CCDEvent
 from .layout import ANGULAR_VELOCITY, PATH_ROW, POSE, VELOCITY
 from .shapes import PLANE_HALF
 from .sweep import CREEP, ride_near
-from .world import FREE, MAXIMAL_TYPE
+from .world import FREE, LINK, MAXIMAL_TYPE
 
 __all__ = ["Contacts", "place", "bounce"]
 
@@ -164,6 +164,11 @@ class _Paths:
     def pushes(self, f) -> bool:
         """f moves on regardless: a kinematic frame, or one carried by it."""
         return f in self.kinematic or self.status(f) == _CARRIED
+
+    def drives(self, f) -> bool:
+        """f moves on along its path whatever this pass does to the free bodies: a kinematic
+        frame, one carried by it, or a link (an articulated body is stopped by its own pass)."""
+        return self.pushes(f) or bool(self.tables.kind[f] == LINK)
 
     def free(self, f) -> bool:
         """A free body that the plugin may stop or push (not carried already)."""
@@ -530,6 +535,14 @@ class Contacts:
             # A pair still pressing in after the world went back to it twice in this step is
             # one pybullet's solver does not hold: going back again would only repeat that.
             action = "stop"
+        if action == "stop":
+            # A free body stopped where a link or a kinematic body drives on into it would only
+            # be overlapped deeper: it is pushed ahead of that body instead.
+            drive_a, drive_b = paths.drives(fa) and paths.free(fb), paths.drives(fb) and paths.free(fa)
+            if drive_a or drive_b:
+                w = _core.window_rows(paths.rows[[i, j]], lo, 1.0)
+                if _overtaken(w if drive_a else w[::-1], normal if drive_a else -normal, self.penetration):
+                    action, push_a = "push", drive_a
         info.update(action=action, act_at=lo + s_act * (1.0 - lo), pusher_first=push_a)
         return info
 
@@ -693,8 +706,10 @@ class Contacts:
         at its speed."""
         self.stats.pushes += 1
         by = k if by is None else by
-        elastic = by != k or k in state.with_velocity
-        return bounce(self.cid, tables, d, by, v, self._kinematic_velocity(state, dt, k, point), normal, elastic)
+        link = bool(tables.kind[k] == LINK)
+        elastic = by != k or k in state.with_velocity or link
+        v_k = self._link_velocity(state, k, point) if link else self._kinematic_velocity(state, dt, k, point)
+        return bounce(self.cid, tables, d, by, v, v_k, normal, elastic)
 
     @staticmethod
     def _kinematic_velocity(state, dt, k, point):
@@ -705,6 +720,12 @@ class Contacts:
         move = _core.path_rows_between(e0[None], e1[None], one, one, np.eye(4)[None], np.zeros((1, 3)))[0]
         omega = move[PATH_ROW["axis"]] * move[PATH_ROW["angle"]][0] / dt
         return move[PATH_ROW["displacement"]] / dt + np.cross(omega, point - e1[:3])
+
+    @staticmethod
+    def _link_velocity(state, k, point):
+        """Velocity at world point ``point`` (after the step) of link frame k on its path (its
+        chord over the step)."""
+        return state.rows[k, VELOCITY] + np.cross(state.rows[k, ANGULAR_VELOCITY], point - state.rows[k, POSE][:3])
 
     def _contact(self, pair, lo, hi):
         """The first touch of a pair (path rows) in [lo, hi] (step fractions): one solve on
