@@ -193,6 +193,47 @@ def test_impacts_close_in_time_are_taken_back_to_together(cid, gap):
         assert lo - 1.0 <= v <= hi + 1.0, (speeds, ref.min(axis=0), ref.max(axis=0))
 
 
+def pyramid_hit(cid, seed, use):
+    """A 1 kg, 0.1 m cube at 30 m/s into a 4-3-2-1 pyramid of 0.5 kg, 0.1 m cubes on a box
+    ground (restitution 0.3, friction 0.5, gravity), at a seeded height, offset and yaw: the
+    struck cubes strike the others within a step or two. Returns the deepest overlap of
+    two boxes where a step ends, over 0.1 s."""
+    reset(cid, -9.81)
+    rng = np.random.default_rng(seed)
+
+    def box(half, at, mass, orn=(0, 0, 0, 1)):
+        shape = p.createCollisionShape(p.GEOM_BOX, halfExtents=half, physicsClientId=cid)
+        b = p.createMultiBody(mass, shape, -1, at, orn, physicsClientId=cid)
+        p.changeDynamics(b, -1, restitution=0.3, lateralFriction=0.5, linearDamping=0, angularDamping=0,
+                         maxJointVelocity=1000, physicsClientId=cid)
+        return b
+
+    ground = box([3, 1, 0.05], [0, 0, -0.05], 0)
+    cubes = [box([0.05] * 3, [-0.15 + 0.05 * row + 0.1 * i, 0, 0.05 + 0.1 * row], 0.5)
+             for row in range(4) for i in range(4 - row)]
+    z, y, yaw = rng.uniform(0.04, 0.3), rng.uniform(-0.03, 0.03), rng.uniform(-0.3, 0.3)
+    cubes.append(box([0.05] * 3, [-0.6, y, z], 1.0, p.getQuaternionFromEuler([0, 0, yaw])))
+    p.resetBaseVelocity(cubes[-1], [30, 0, 0], physicsClientId=cid)
+    _, step = stepper(cid, use)
+    deepest = 0.0
+    for _ in range(24):
+        step()
+        for k, a in enumerate(cubes):
+            for b in [ground] + cubes[k + 1:]:
+                deepest = max([deepest] + [-c[8] for c in p.getClosestPoints(a, b, 0.0, physicsClientId=cid)])
+    return deepest
+
+
+def test_impacts_taken_back_to_together_are_resolved_from_a_shallow_overlap(cid):
+    """Impacts that begin within a few mm of the step's first one's overlap are taken back to
+    together, to the latest one's time; joined by the slow impacts of the cubes the struck
+    cube pushes, the first was resolved from up to a quarter of the cube's half extent (1.25
+    cm), and a step ended 1.1 cm deep. No step ends deeper than 6 mm over 12 hits (the
+    converged engine's 0.01 mm; plain pybullet's steps end 3 to 8 cm deep)."""
+    deepest = [pyramid_hit(cid, seed, True) for seed in range(12)]
+    assert max(deepest) < 0.006, deepest
+
+
 # ------------------------------------------------- a face tipped by sliding
 def slide_strike(cid, slid, use, fine=1, phase=0.0):
     """A 0.1 m cube (restitution 0, friction 0.5, as the floor and a 1 cm wall) resting on a
