@@ -540,7 +540,8 @@ class BoxCCD:
                 # last piece an impact began, taken again shorter if it spun a body past the limit).
                 moved_static, user_moved = [], set()
                 # A link pair pressing in again after the world went back to it (a robot's landing
-                # pybullet's solver cannot hold within a coarse step) was not held over this piece:
+                # pybullet's solver cannot hold within a coarse step, an arm driving a box along
+                # its face), or a free body and a link, was not held over this piece:
                 # the next are half as long; after a piece in which none was, twice as long again
                 # (up to the step), as an adaptive step takes it.
                 if self._pressed_again:
@@ -713,8 +714,9 @@ class BoxCCD:
         if back:
             # One time order: the free bodies' contacts up to the earliest articulated one
             # that needs the world back; the world then goes back to the earlier of the two.
-            # A link pair pressing in again after the world went back to it is one pybullet's
-            # solver did not hold over that piece: the next pieces are half as long (``_step``).
+            # A link pair (or a free body and a link) pressing in again after the world went
+            # back to it is one pybullet's solver did not hold over that piece: the next pieces
+            # are half as long (``_step``).
             tau_links, links_acted = self._chains.act_at(found)
             events, tau = self.contacts.resolve(sw, jw, t, st, h, user_moved, self._gravity, True, tau_links,
                                                 self._struck, self._presses)
@@ -723,6 +725,7 @@ class BoxCCD:
                 self._others.back(h, tau, self._gravity)
                 if self.contacts.acted:
                     self._acted, self._struck = self.contacts.acted, self.contacts.struck
+                    self._pressed_again = self.contacts.link_pressed_again
                 else:
                     # A link's impact on a free body (met inside the step) is struck as a free
                     # pair's is: its bodies keep its impulse whole where the world goes back

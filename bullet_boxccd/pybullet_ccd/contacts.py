@@ -171,7 +171,10 @@ class _Paths:
     def drives(self, f) -> bool:
         """f moves on along its path whatever this pass does to the free bodies: a kinematic
         frame, one carried by it, or a link (an articulated body is stopped by its own pass)."""
-        return self.pushes(f) or bool(self.tables.kind[f] == LINK)
+        return self.pushes(f) or self.link(f)
+
+    def link(self, f) -> bool:
+        return bool(self.tables.kind[f] == LINK)
 
     def free(self, f) -> bool:
         """A free body that the plugin may stop or push (not carried already)."""
@@ -268,6 +271,7 @@ class Contacts:
         pybullet resolves those impacts as the next step begins."""
         kinematic = set(state.kinematic)
         events, self.struck, self.acted, self._cut, self.impacts = [], set(), set(), set(), []
+        self.link_pressed_again = False
         self.met = set()
         self._presses = {} if presses is None else presses
         pushed = self._jumps(jw, tables, state, dt, kinematic, user_moved, events) if jw is not None else {}
@@ -370,6 +374,7 @@ class Contacts:
                 key = (int(paths.frame[i]), int(paths.frame[j]))
                 if not info["impact"]:
                     self._presses[key] = self._presses.get(key, 0) + 1
+                    self.link_pressed_again = self._presses[key] > 1 and (paths.link(key[0]) or paths.link(key[1]))
                     self._cut = self._clamp_cut(key)
                 self.acted = set(key)
                 self.struck = self.acted if self._cut or info["impact"] else set()
@@ -534,17 +539,23 @@ class Contacts:
                 s_act = s_touch
         elif not wrong or math.isnan(s_act):  # resolved by pybullet, or never that deep: a graze
             return info
-        elif action == "back" and not info["impact"] and self._presses.get((int(fa), int(fb)), 0) >= PRESSES:
+        elif action == "back" and not info["impact"] and self._presses.get((int(fa), int(fb)), 0) >= PRESSES \
+                and not paths.link(fa) and not paths.link(fb):
             # A pair still pressing in after the world went back to it twice in this step is
             # one pybullet's solver does not hold: going back again would only repeat that.
+            # A link's press is taken back to again, in shorter pieces (``BoxCCD._step``).
             action = "stop"
         if action == "stop":
             # A free body stopped where a link or a kinematic body drives on into it would only
-            # be overlapped deeper: it is pushed ahead of that body instead.
+            # be overlapped deeper: a kinematic body pushes it ahead; a link's press is left to
+            # pybullet's solver, which has the link's mass and motors (pushed, a heavy box left
+            # a weak arm faster than the converged engine's; stopped, 3 cm deep in it).
             drive_a, drive_b = paths.drives(fa) and paths.free(fb), paths.drives(fb) and paths.free(fa)
             if drive_a or drive_b:
                 w = _core.window_rows(paths.rows[[i, j]], lo, 1.0)
                 if _overtaken(w if drive_a else w[::-1], normal if drive_a else -normal, self.penetration):
+                    if paths.link(fa if drive_a else fb):
+                        return info
                     action, push_a = "push", drive_a
         info.update(action=action, act_at=lo + s_act * (1.0 - lo), pusher_first=push_a)
         return info
@@ -709,10 +720,8 @@ class Contacts:
         at its speed."""
         self.stats.pushes += 1
         by = k if by is None else by
-        link = bool(tables.kind[k] == LINK)
-        elastic = by != k or k in state.with_velocity or link
-        v_k = self._link_velocity(state, k, point) if link else self._kinematic_velocity(state, dt, k, point)
-        return bounce(self.cid, tables, d, by, v, v_k, normal, elastic)
+        elastic = by != k or k in state.with_velocity
+        return bounce(self.cid, tables, d, by, v, self._kinematic_velocity(state, dt, k, point), normal, elastic)
 
     @staticmethod
     def _kinematic_velocity(state, dt, k, point):
@@ -723,12 +732,6 @@ class Contacts:
         move = _core.path_rows_between(e0[None], e1[None], one, one, np.eye(4)[None], np.zeros((1, 3)))[0]
         omega = move[PATH_ROW["axis"]] * move[PATH_ROW["angle"]][0] / dt
         return move[PATH_ROW["displacement"]] / dt + np.cross(omega, point - e1[:3])
-
-    @staticmethod
-    def _link_velocity(state, k, point):
-        """Velocity at world point ``point`` (after the step) of link frame k on its path (its
-        chord over the step)."""
-        return state.rows[k, VELOCITY] + np.cross(state.rows[k, ANGULAR_VELOCITY], point - state.rows[k, POSE][:3])
 
     def _contact(self, pair, lo, hi):
         """The first touch of a pair (path rows) in [lo, hi] (step fractions): one solve on
