@@ -1,0 +1,212 @@
+"""Boxes driven by what does not stop for them, against pybullet's converged physics.
+
+1. ``arm``: a fixed-base two-link box arm (links 0.3 x 0.06 x 0.06 m, 1 kg, in a
+   horizontal plane), its shoulder's velocity motor at 15-60 rad/s (100-1000 N m), its
+   elbow held, swings into a free 5 cm cube of 0.05-2 kg placed at random in its reach
+   (restitution 0 or 0.5, friction 0.2-0.8, on a table or floating), at 240 or 60 Hz: the
+   link strikes the cube and often drives it along its face for a few steps.
+2. ``bar``: a mass-0 bar (0.4 x 0.02 x 0.1 m) turned about its end at 20-60 rad/s by a
+   teleport to its pose at every step (and given its spin too, in half the scenes) sweeps
+   a free 5 cm cube out along it and off its end.
+
+Per scene: the cube's velocity after the run against the converged engine's (plain
+pybullet at a 128 times finer step at 240 Hz, 256 at 60 Hz, the mean over 4 offsets of
+its step grid, every per-step command given at every fine step), as a share of the
+driving speed (the arm's tip, the bar's tip); and the deepest overlap of the cube and
+what drives it (or the table) where a step ends. Printed: each method's median error,
+mean and largest error, the scenes more than 0.15 off, and the scenes ending a step
+deeper than 1 cm or twice the converged engine's deepest.
+
+Run
+---
+    python benchmarks/pushed.py                 # ~2 min on 2 cores
+    python benchmarks/pushed.py --family bar --scenes 8
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import multiprocessing
+import time
+
+import numpy as np
+import pybullet as p
+
+import bullet_boxccd  # noqa: F401  (the hooks, before any body is made)
+from bullet_boxccd import BoxCCD
+
+RAW_STEP = p._bullet_boxccd_originals["stepSimulation"]
+
+
+def arm_scenes(n, seed=5):
+    rng = np.random.default_rng(seed)
+    out = []
+    for k in range(n):
+        r, a = rng.uniform(0.36, 0.58), rng.uniform(-0.1, 0.6)
+        slow = k % 2 == 1
+        out.append(dict(at=(r * math.cos(a), r * math.sin(a)), mass=float(rng.choice([0.05, 0.2, 0.5, 1.0, 2.0])),
+                        omega=float(rng.choice([15.0, 25.0, 40.0, 60.0])),
+                        force=float(rng.choice([100.0, 300.0, 500.0, 1000.0])),
+                        rest=float(rng.choice([0.0, 0.5])), fric=float(rng.choice([0.2, 0.5, 0.8])),
+                        table=bool(rng.random() < 0.5), dt=1 / 60 if slow else 1 / 240, steps=6 if slow else 24))
+    return out
+
+
+def bar_scenes(n, seed=6):
+    rng = np.random.default_rng(seed)
+    out = []
+    for k in range(n):
+        slow = k % 4 == 3
+        out.append(dict(omega=float(rng.uniform(20.0, 60.0)), spin=bool(k % 2),
+                        mass=float(rng.choice([0.05, 0.2, 1.0])), rest=float(rng.choice([0.0, 0.5])),
+                        table=bool(rng.random() < 0.5),
+                        dt=1 / 60 if slow else 1 / 240, steps=8 if slow else 24))
+    return out
+
+
+def _shape(cid, half, at=(0, 0, 0)):
+    return p.createCollisionShape(p.GEOM_BOX, halfExtents=half, collisionFramePosition=at, physicsClientId=cid)
+
+
+def build_arm(cid, s):
+    """(the cube, the bodies whose overlap with it is measured, a per-step command or None)."""
+    link = _shape(cid, [0.15, 0.03, 0.03], [0.15, 0, 0])
+    arm = p.createMultiBody(0, _shape(cid, [0.03] * 3), -1, [0, 0, 0], linkMasses=[1, 1],
+                            linkCollisionShapeIndices=[link, link], linkVisualShapeIndices=[-1, -1],
+                            linkPositions=[[0, 0, 0], [0.3, 0, 0]], linkOrientations=[[0, 0, 0, 1]] * 2,
+                            linkInertialFramePositions=[[0.15, 0, 0]] * 2,
+                            linkInertialFrameOrientations=[[0, 0, 0, 1]] * 2, linkParentIndices=[0, 1],
+                            linkJointTypes=[p.JOINT_REVOLUTE] * 2, linkJointAxis=[[0, 0, 1]] * 2, physicsClientId=cid)
+    for j in (-1, 0, 1):
+        p.changeDynamics(arm, j, linearDamping=0, angularDamping=0, maxJointVelocity=1000, jointDamping=0,
+                         restitution=s["rest"], physicsClientId=cid)
+    p.resetJointState(arm, 0, -1.0, s["omega"], physicsClientId=cid)
+    for joint, target in ((0, s["omega"]), (1, 0.0)):
+        p.setJointMotorControl2(arm, joint, p.VELOCITY_CONTROL, targetVelocity=target, force=s["force"],
+                                physicsClientId=cid)
+    others, z = [arm], 0.0
+    if s["table"]:
+        table = p.createMultiBody(0, _shape(cid, [2, 2, 0.05]), -1, [0, 0, -0.081], physicsClientId=cid)
+        p.changeDynamics(table, -1, lateralFriction=s["fric"], physicsClientId=cid)
+        others, z = [arm, table], -0.006
+    cube = p.createMultiBody(s["mass"], _shape(cid, [0.025] * 3), -1, [*s["at"], z], physicsClientId=cid)
+    p.changeDynamics(cube, -1, restitution=s["rest"], lateralFriction=s["fric"], linearDamping=0, angularDamping=0,
+                     maxJointVelocity=1000, physicsClientId=cid)
+    return cube, others, None
+
+
+def build_bar(cid, s):
+    omega, z = s["omega"], 0.025 if s["table"] else 0.0
+
+    def angle(t):
+        return -0.6 + omega * t
+
+    def pose(t):
+        a = angle(t)
+        return [0.2 * math.cos(a), 0.2 * math.sin(a), z], p.getQuaternionFromEuler([0, 0, a])
+
+    bar = p.createMultiBody(0, _shape(cid, [0.2, 0.01, 0.05]), -1, *pose(0.0), physicsClientId=cid)
+    others = [bar]
+    if s["table"]:
+        table = p.createMultiBody(0, _shape(cid, [2, 2, 0.05]), -1, [0, 0, -0.05], physicsClientId=cid)
+        p.setCollisionFilterPair(bar, table, -1, -1, 0, physicsClientId=cid)
+        others.append(table)
+    cube = p.createMultiBody(s["mass"], _shape(cid, [0.025] * 3), -1, [0.3, 0.15, z], physicsClientId=cid)
+    for b in (bar, cube):
+        p.changeDynamics(b, -1, restitution=s["rest"], lateralFriction=0.5, physicsClientId=cid)
+    p.changeDynamics(cube, -1, linearDamping=0, angularDamping=0, maxJointVelocity=1000, physicsClientId=cid)
+
+    def command(t):
+        p.resetBasePositionAndOrientation(bar, *pose(t), physicsClientId=cid)
+        if s["spin"]:
+            a = angle(t)
+            p.resetBaseVelocity(bar, [-0.2 * omega * math.sin(a), 0.2 * omega * math.cos(a), 0], [0, 0, omega],
+                                physicsClientId=cid)
+
+    return cube, others, command
+
+
+BUILD = {"arm": build_arm, "bar": build_bar}
+
+
+def run(family, s, method, fine=1, phase=0.0):
+    """(the cube's velocity after the run, the deepest overlap where a step of dt ends)."""
+    cid = p.connect(p.DIRECT)
+    try:
+        h = s["dt"] / fine
+        p.setTimeStep(h, physicsClientId=cid)
+        p.setGravity(0, 0, -9.81 if s["table"] else 0.0, physicsClientId=cid)
+        cube, others, command = BUILD[family](cid, s)
+        t = 0.0
+        if phase:
+            t = phase * h
+            p.setTimeStep(t, physicsClientId=cid)
+            if command:
+                command(t)
+            RAW_STEP(physicsClientId=cid)
+            p.setTimeStep(h, physicsClientId=cid)
+        ccd = BoxCCD(cid) if method == "boxccd" else None
+        deepest = 0.0
+        for _ in range(s["steps"]):
+            for _ in range(fine):
+                t += h
+                if command:
+                    command(t)
+                ccd.step() if ccd else RAW_STEP(physicsClientId=cid)
+            for b in others:
+                deepest = max([deepest] + [-c[8] for c in p.getClosestPoints(b, cube, 0.0, physicsClientId=cid)])
+        return np.array(p.getBaseVelocity(cube, physicsClientId=cid)[0]), deepest
+    finally:
+        p.disconnect(cid)
+
+
+def scene(job):
+    family, k, s = job
+    fine = 128 if s["dt"] < 1 / 100 else 256
+    refs = [run(family, s, "plain", fine, j / 4) for j in range(4)]
+    v_ref, ref_deepest = np.mean([r[0] for r in refs], axis=0), max(r[1] for r in refs)
+    drive = (0.6 if family == "arm" else 0.4) * s["omega"]  # the tip's speed
+    out = {"family": family, "scene": k, "ref_deepest": ref_deepest}
+    for method in ("boxccd", "plain"):
+        v, deepest = run(family, s, method)
+        out[method] = (float(np.linalg.norm(v - v_ref) / drive), deepest)
+    return out
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--family", choices=["arm", "bar", "both"], default="both")
+    ap.add_argument("--scenes", type=int, default=None, help="scenes per family (default: arm 40, bar 16)")
+    ap.add_argument("--jobs", type=int, default=2)
+    ap.add_argument("--verbose", action="store_true", help="each scene's figures too")
+    args = ap.parse_args()
+    families = ["arm", "bar"] if args.family == "both" else [args.family]
+    jobs = []
+    for f in families:
+        n = args.scenes or {"arm": 40, "bar": 16}[f]
+        jobs += [(f, k, s) for k, s in enumerate((arm_scenes if f == "arm" else bar_scenes)(n))]
+    t0 = time.perf_counter()
+    with multiprocessing.Pool(args.jobs) as pool:
+        rows = pool.map(scene, jobs)
+    for f in families:
+        rs = [r for r in rows if r["family"] == f]
+        print(f"\n{f}: {len(rs)} scenes; error = |v - v_ref| / driving speed")
+        if args.verbose:
+            scenes = {k: s for g, k, s in jobs if g == f}
+            for r in rs:
+                print(f"  {r['scene']:2d} {scenes[r['scene']]}: error boxccd {r['boxccd'][0]:.3f} plain "
+                      f"{r['plain'][0]:.3f}; deepest boxccd {r['boxccd'][1]:.4f} plain {r['plain'][1]:.4f} "
+                      f"reference {r['ref_deepest']:.4f}")
+        print("| method | median error | mean | largest | more than 0.15 off | a step deeper than 1 cm or 2x the "
+              "reference's |")
+        print("|---|---|---|---|---|---|")
+        for m in ("boxccd", "plain"):
+            e = np.array([r[m][0] for r in rs])
+            deep = sum(r[m][1] > max(0.01, 2 * r["ref_deepest"]) for r in rs)
+            print(f"| {m} | {np.median(e):.3f} | {e.mean():.3f} | {e.max():.2f} | {int((e > 0.15).sum())} | {deep} |")
+    print(f"\n{time.perf_counter() - t0:.0f} s")
+
+
+if __name__ == "__main__":
+    main()
