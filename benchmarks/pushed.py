@@ -19,7 +19,7 @@ deeper than 1 cm or twice the converged engine's deepest.
 
 Run
 ---
-    python benchmarks/pushed.py                 # ~2 min on 2 cores
+    python benchmarks/pushed.py                 # ~10 s on 2 cores
     python benchmarks/pushed.py --family bar --scenes 8
 """
 

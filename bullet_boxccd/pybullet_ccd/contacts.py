@@ -220,14 +220,11 @@ class _Paths:
         tr.stop_time = tau
         self._changed(tr, _STOPPED, tau)
 
-    def carried_by(self, f, k, row_k, tau, com=None, slide=None):
+    def carried_by(self, f, k, row_k, tau, com=None):
         """Frame f moves with frame k, of path row ``row_k``, from tau on (from centre-of-mass
-        pose ``com`` (4, 4) at tau, if given, rather than where its path has it): turning
-        with it, and with ``slide`` (its velocity v, the contact normal n from k at the end)
-        moving at v but for what keeps it out of k's face along n (``_slide``), not held
-        where it touched k's face (a cube pushed by a turning paddle slides out along it)."""
+        pose ``com`` (4, 4) at tau, if given, rather than where its path has it)."""
         tr = self.track[f]
-        carrier, rel = _ride(row_k, tau, self.com(f, tau) if com is None else com, self.dt, slide)
+        carrier, rel = _rider(row_k, tau, self.com(f, tau) if com is None else com)
         for r in tr.rows:
             X_CS = self.tables.X_CS[self.box[r]]
             self.rows[r, PATH_ROW["pose_after"]] = carrier[PATH_ROW["pose_after"]]
@@ -279,17 +276,13 @@ class Contacts:
         self._presses = {} if presses is None else presses
         pushed = self._jumps(jw, tables, state, dt, kinematic, user_moved, events) if jw is not None else {}
         paths = _Paths(sw, tables, state, dt, kinematic, struck, gravity) if sw is not None and sw.hits else None
-        for d, (k, start, v, normal) in pushed.items():  # then it rides its kinematic body through the step
-            # (sliding along it if the step moves it too: a teleport alone moved it already)
+        for d, (k, start, v) in pushed.items():  # then it rides its kinematic body through the step
             row_k = self._frame_row(tables, state, dt, k)
-            slide = (v, _moved_with(row_k, 0.0, normal)) if k in state.with_velocity else None
             if paths is not None and d in paths.track:
-                paths.carried_by(d, k, row_k, 0.0, start, slide)
+                paths.carried_by(d, k, row_k, 0.0, com=start)
                 paths.track[d].velocity = (v, np.zeros(3))
             else:
-                end = _carry(row_k, 0.0, start)
-                end = end if slide is None else _slide(start[:3, 3], end, *slide, dt)
-                place(self.cid, tables, state, d, pose7(end), v, np.zeros(3))
+                place(self.cid, tables, state, d, pose7(_carry(row_k, 0.0, start)), v, np.zeros(3))
         tau = horizon if back else 1.0
         if paths is not None:
             tau = min(tau, self._time_order(paths, sw, user_moved, events, back, tau))
@@ -579,13 +572,11 @@ class Contacts:
                 return []
             row_k = paths.rows[i if info["pusher_first"] else j]
             normal = _moved_with(row_k, tau, c.normal if info["pusher_first"] else -c.normal)
-            com = paths.com(d, tau)
-            com1 = _carry(row_k, tau, com)[:3, 3]
+            paths.carried_by(d, k, row_k, tau)
+            com1 = paths.com(d, 1.0)[:3, 3]
             v = self._push_velocity(paths.tables, paths.state, paths.dt, d, paths.driver(k), com1, normal,
                                     paths.twist(d)[0])
-            w = paths.twist(d)[1]
-            paths.carried_by(d, k, row_k, tau, com, (v, normal))
-            paths.track[d].velocity = (v, w)
+            paths.track[d].velocity = (v, paths.twist(d)[1])
             return [d]
         changed = [f for f in (fa, fb) if paths.stoppable(f)]
         whole = not info["impact"] and bool(self._clamp_cut((fa, fb)))
@@ -679,24 +670,20 @@ class Contacts:
             if act:
                 start = pose_matrix(*np.split(_core.frame_poses(state.rows, dt, np.array([d], dtype=np.int64),
                                                                 np.zeros(1))[0], [3]))
+                X = _carry(pair[0], tau, start)
                 normal = _moved_with(pair[0], tau, c.normal)
-                # (struck with the velocity it had: pybullet's step met the jump's overlap)
-                v0 = state.rows[d, VELOCITY] if state.twist0 is None else state.twist0[d, :3]
-                v = self._push_velocity(tables, state, dt, d, k, _carry(pair[0], tau, start)[:3, 3], normal, v0,
-                                        pusher)
-                ride = _ride(pair[0], tau, start, dt, (v, normal))
-                pushed[d] = (k, _core.row_poses(ride[0][None], np.ones(1))[0] @ ride[1], v, normal)
-                for t, rows, met, contact in self._ride_touches(tables, state, dt, ride, tau, d,
+                v = self._push_velocity(tables, state, dt, d, k, X[:3, 3], normal, state.rows[d, VELOCITY], pusher)
+                pushed[d] = (k, X, v)
+                for t, rows, met, contact in self._ride_touches(tables, state, dt, pair[0], tau, d, start,
                                                                 kinematic | set(pushed)):
                     heapq.heappush(queue, (t, next(order), rows, d, met, k, contact))
         return pushed
 
-    def _ride_touches(self, tables, state, dt, ride, tau, d, exclude):
-        """The first touches of frame d on its ride from tau on (``_ride``: the row of the
-        frame it rides with, its centre of mass in that frame) with the free frames standing
-        where the step began, not in ``exclude``: [(touch, pair of path rows, met frame,
-        contact)]."""
-        carrier, rel = ride
+    def _ride_touches(self, tables, state, dt, row, tau, d, start, exclude):
+        """The first touches of frame d riding from tau on with the frame of path row ``row``
+        (its centre of mass at pose ``start`` then) with the free frames standing where the
+        step began, not in ``exclude``: [(touch, pair of path rows, met frame, contact)]."""
+        carrier, rel = _rider(row, tau, start)
         boxes = tables.frame_boxes[d]
         rides = np.repeat(carrier[None], len(boxes), axis=0)
         for r, b in enumerate(boxes):
@@ -831,31 +818,6 @@ def _carry(row, tau, X):
     frame = _frame_of(row)
     F_tau, F_1 = _core.row_poses(np.stack([frame, frame]), np.array([tau, 1.0]))
     return F_1 @ np.linalg.solve(F_tau, X)
-
-
-def _ride(row, tau, com, dt, slide=None):
-    """(the path row of the frame a body rides with from tau on, its centre-of-mass pose in
-    that frame): with path row ``row``'s frame, from centre-of-mass pose ``com`` (4, 4) at
-    tau; with ``slide`` (its velocity v, the contact normal n from the pusher at the end),
-    on a frame of its own that turns as row's does and moves it as ``_slide`` has it."""
-    carrier, rel = _rider(row, tau, com)
-    if slide is None or tau >= 1.0:
-        return carrier, rel
-    end = _slide(com[:3, 3], _core.row_poses(carrier[None], np.ones(1))[0] @ rel, *slide, (1.0 - tau) * dt)
-    carrier[PATH_ROW["pose_after"]] = end.reshape(-1)
-    carrier[PATH_ROW["displacement"]] = (end[:3, 3] - com[:3, 3]) / (1.0 - tau)
-    return carrier, np.eye(4)
-
-
-def _slide(x, X_held, v, n, span):
-    """Pose X_held (4, 4: where a body pushed from position x would be, held where it touched
-    the pusher's face, turned with it), moved to where velocity v takes it from x in
-    ``span`` seconds, but for what keeps it out of the face along its normal n (from the
-    pusher): the pusher drives it along n only, and it slides along the face."""
-    free = x + v * span
-    out = X_held.copy()
-    out[:3, 3] = free + max(float(np.dot(X_held[:3, 3] - free, n)), 0.0) * n
-    return out
 
 
 def _still_row(X, row):
