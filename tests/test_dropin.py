@@ -343,6 +343,45 @@ def test_a_teleported_paddle_pushes_as_pybullet_teleporting_it_in_fine_steps(cid
     assert not np.allclose(_teleported_paddle(cid, False, velocity=velocity), ref, atol=0.1 * 20.0)
 
 
+def _elevator(cid, use, speed, fine=1):
+    """A cube (0.1 m, 1 kg) resting on a mass-0 plate 10 cm thick that the user teleports up
+    at ``speed`` m/s at every step of DT (or of DT / fine), with gravity, for 0.5 s.
+    Returns (the cube's height and vertical velocity at the end, the deepest overlap of
+    plate and cube where a step of DT ends)."""
+    reset(cid, gravity=-9.81)
+    plate = box(cid, [0.4, 0.4, 0.05], [0, 0, -0.05], mass=0.0)
+    cube = box(cid, [0.05] * 3, [0.2, 0, 0.05])
+    ccd = BoxCCD(cid) if use else None
+    h, deepest = DT / fine, 0.0
+    if fine > 1:
+        p.setTimeStep(h, physicsClientId=cid)
+    for k in range(round(0.5 / DT) * fine):
+        p.resetBasePositionAndOrientation(plate, [0, 0, -0.05 + speed * (k + 1) * h], [0, 0, 0, 1],
+                                          physicsClientId=cid)
+        ccd.step() if ccd else p.stepSimulation(physicsClientId=cid)
+        if (k + 1) % fine == 0:
+            deepest = max([deepest] + [-c[8] for c in p.getClosestPoints(plate, cube, 0.0, physicsClientId=cid)])
+    return p.getBasePositionAndOrientation(cube, physicsClientId=cid)[0][2], \
+        p.getBaseVelocity(cube, physicsClientId=cid)[0][2], deepest
+
+
+def test_a_box_on_a_teleported_elevator_rides_it_as_the_converged_engine(cid):
+    """pybullet gives a teleport no velocity: its solver pushes the cube out of the overlap
+    each teleport makes by contact ERP x that overlap a step only, so on a plate teleported
+    up by 8.3 mm a step (2 m/s at 240 Hz) the cube sinks until it is 8.3 mm / ERP deep, and
+    falls through the plate. A jump that would leave a box deeper than a free box may move
+    unswept in a step is carried: the cube rides the plate as pybullet teleporting it 64
+    times a step has it, within 1 cm and 0.05 m/s, no step ending deeper than 1 cm. At
+    0.05 m/s (2.6 mm deep in plain pybullet) the world is plain pybullet's, bit for bit."""
+    z, vz, deepest = _elevator(cid, True, 2.0)
+    z_ref, vz_ref, deepest_ref = _elevator(cid, False, 2.0, 64)
+    assert deepest_ref < 0.002  # 8.3 mm / 64 / ERP
+    assert abs(z - z_ref) < 0.01 and abs(vz - vz_ref) < 0.05, (z, vz, z_ref, vz_ref)
+    assert deepest < 0.01, deepest
+    assert _elevator(cid, False, 2.0)[0] < 0.0  # plain pybullet: through the plate
+    assert _elevator(cid, True, 0.05) == _elevator(cid, False, 0.05)
+
+
 def _turning_paddle(cid, use, fine=1, phase=0.0):
     """A mass-0 bar (0.4 x 0.02 x 0.1 m) turned about its end at the origin at 55 rad/s
     (22 m/s at its tip) by a teleport to its pose and its velocity and spin at every step
@@ -790,11 +829,12 @@ def test_a_platform_given_a_velocity_before_boxccd_was_made_lifts_as_in_plain_py
     assert platform_scene(cid, True, lift, late=True) == platform_scene(cid, False, lift, late=True)
 
 
-def test_a_teleport_shorter_than_a_free_box_moves_unswept_is_left_to_pybullet(cid):
-    """2 mm a step: less than a free box may move unswept (a quarter of its thinnest
-    extent, 1 cm)."""
+def test_a_teleport_pybullet_holds_is_left_to_pybullet(cid):
+    """0.5 mm a step: pybullet pushes the cube out of each teleport's overlap by contact ERP
+    (0.08) x the overlap a step, and holds it 6 mm deep, less than a free box may move
+    unswept (a quarter of its thinnest extent, 1 cm)."""
     def lift(b, k):
-        p.resetBasePositionAndOrientation(b, [0, 0, 0.5 + 0.002 * (k + 1)], [0, 0, 0, 1], physicsClientId=cid)
+        p.resetBasePositionAndOrientation(b, [0, 0, 0.5 + 0.0005 * (k + 1)], [0, 0, 0, 1], physicsClientId=cid)
 
     assert platform_scene(cid, True, lift) == platform_scene(cid, False, lift)
 

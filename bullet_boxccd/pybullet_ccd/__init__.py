@@ -696,7 +696,7 @@ class BoxCCD:
         st = self._state
         self._chains.read(h, st, self._known)
         self._known = True
-        st.end_kinematic(h)
+        st.end_kinematic(h, self.world.journal.contact_erp)
         if sw is None and not (stepped and fast is None):
             sw = sweep(self.cid, t, st, h, self.fit_tolerance, self.tolerances, self.penetration, self.stats, t0, fast,
                        self._seen_fast, self._near_unswept if self._unswept else None)
