@@ -672,7 +672,8 @@ class Contacts:
                                                                 np.zeros(1))[0], [3]))
                 X = _carry(pair[0], tau, start)
                 normal = _moved_with(pair[0], tau, c.normal)
-                v = self._push_velocity(tables, state, dt, d, k, X[:3, 3], normal, state.rows[d, VELOCITY], pusher)
+                v = self._push_velocity(tables, state, dt, d, k, X[:3, 3], normal, state.rows[d, VELOCITY], pusher,
+                                        jump=True)
                 pushed[d] = (k, X, v)
                 for t, rows, met, contact in self._ride_touches(tables, state, dt, pair[0], tau, d, start,
                                                                 kinematic | set(pushed)):
@@ -710,24 +711,26 @@ class Contacts:
         return row
 
     # -------------------------------------------------------------- pushes
-    def _push_velocity(self, tables, state, dt, d, k, point, normal, v, by=None):
+    def _push_velocity(self, tables, state, dt, d, k, point, normal, v, by=None, jump=False):
         """Frame d's velocity after a collision, at ``point`` along ``normal`` (from the
-        pusher), with an immovable body moving as kinematic frame k moved over the whole
-        step (its jump and the step's own motion), its own velocity v before. The collision
-        is with frame ``by`` (k if None; a body riding with k), with the pair's restitution,
-        but none with k itself if the user only teleports it: pybullet gives it no velocity
-        to rebound from, and at a fine step pushes what it moves into out of the overlap,
-        at its speed."""
+        pusher), with an immovable body moving as kinematic frame k moved over the step (its
+        jump and the step's own motion; with ``jump``, its jump alone, taken in dt: a user who
+        teleports a body to its next pose and gives it its velocity too moves it twice in
+        the step the teleport begins), its own velocity v before. The collision is with
+        frame ``by`` (k if None; a body riding with k), with the pair's restitution, but
+        none with k itself if the user only teleports it: pybullet gives it no velocity to
+        rebound from, and at a fine step pushes what it moves into out of the overlap, at
+        its speed."""
         self.stats.pushes += 1
         by = k if by is None else by
         elastic = by != k or k in state.with_velocity
-        return bounce(self.cid, tables, d, by, v, self._kinematic_velocity(state, dt, k, point), normal, elastic)
+        ends = state.jumps[k] if jump else (state.pose0.get(k, state.rows[k, POSE]), state.rows[k, POSE])
+        return bounce(self.cid, tables, d, by, v, self._kinematic_velocity(*ends, dt, point), normal, elastic)
 
     @staticmethod
-    def _kinematic_velocity(state, dt, k, point):
-        """Velocity at world point ``point`` (after the step) of kinematic frame k's move from
-        its pose before the step to its pose after, taken in dt."""
-        e0, e1 = state.pose0.get(k, state.rows[k, POSE]), state.rows[k, POSE]
+    def _kinematic_velocity(e0, e1, dt, point):
+        """Velocity at world point ``point`` (at pose e1) of a kinematic frame's move from pose
+        e0 to pose e1, taken in dt."""
         one = np.zeros(1, dtype=np.int64)
         move = _core.path_rows_between(e0[None], e1[None], one, one, np.eye(4)[None], np.zeros((1, 3)))[0]
         omega = move[PATH_ROW["axis"]] * move[PATH_ROW["angle"]][0] / dt
