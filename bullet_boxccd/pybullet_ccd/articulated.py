@@ -197,19 +197,20 @@ class Articulated:
             moving = rec.layout[0]
             js = raw.getJointStatesMultiDof(rec.body, moving, physicsClientId=cid) if moving else ()
             rec.start = (rec.base_state[7:13], rec.qdot) if known and rec.base_state is not None else None
-            rec.base_state = np.array([*pos, *orn, *v, *w], dtype=np.float64)
             # A fixed joint has no coordinates: the moving joints' are the flat q and qdot.
-            q = np.array([x for s in js for x in s[0]], dtype=np.float64)
-            rec.qdot = np.array([x for s in js for x in s[1]], dtype=np.float64)
-            if not (np.isfinite(rec.base_state).all() and np.isfinite(q).all() and np.isfinite(rec.qdot).all()):
+            base, q = [*pos, *orn, *v, *w], [x for s in js for x in s[0]]
+            qdot = [x for s in js for x in s[1]]
+            rec.base_state = np.array(base, dtype=np.float64)
+            rec.qdot = np.array(qdot, dtype=np.float64)
+            if not all(map(math.isfinite, base + q + qdot)):
                 # (a NaN or infinite velocity the user set, or a step of a time not finite)
                 self._warn(("not finite", rec.body), not_finite_message(rec.body))
                 rec.motion = rec.base_state = None
                 continue
-            if (np.any(np.abs(rec.qdot) == MAX_VELOCITY) or np.any(np.abs(rec.base_state[7:13]) == MAX_VELOCITY)) \
+            if MAX_VELOCITY in map(abs, qdot + base[7:]) \
                     and self._max_velocity.get(rec.body, MAX_VELOCITY) == MAX_VELOCITY:
                 self.clamp_seen.append(rec)
-            rec.motion = _core.ChainMotion(rec.chain.core, rec.base_state, q, rec.qdot, dt)
+            rec.motion = _core.ChainMotion(rec.chain.core, rec.base_state, np.array(q, dtype=np.float64), rec.qdot, dt)
             rec.paths = {}
             state.rows[rec.frame_index] = rec.motion.frame_rows(rec.link_of_frame)
             state.fresh.update(rec.frames)

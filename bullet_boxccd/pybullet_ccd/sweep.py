@@ -142,21 +142,36 @@ def unswept_near(cid, tables, frames, bounds, slack):
     (n,)) collide with: of another body, and not filtered out."""
     reach = bounds[:, :3].min(axis=0).tolist() + bounds[:, 3:].max(axis=0).tolist()
     near = [key for key in map(tuple, overlap_query(cid, reach, slack)) if key in tables.unswept]
+    if not near:
+        return []
+    # Each box's bounds widened as overlap_query widens them. The union can span a room:
+    # where it holds more shapes than there are boxes, each box's own query narrows them
+    # down (pybullet's broad phase holds a shape's AABB within its own).
+    w = slack + _QUERY_WIDEN * np.abs(bounds).max(axis=1, keepdims=True)
+    lows, highs = (bounds[:, :3] - w).tolist(), (bounds[:, 3:] + w).tolist()
+    rows = range(len(frames))
+    if len(frames) < len(near):
+        ask = {key: [] for key in near}
+        for k, box in enumerate(bounds.tolist()):
+            for key in map(tuple, overlap_query(cid, box, slack)):
+                if key in ask:
+                    ask[key].append(k)
+        near = [key for key, ks in ask.items() if ks]
+    else:
+        ask = dict.fromkeys(near, rows)
     out, allowed, body = [], tables.filters.allowed_shape, tables.body
-    for key in near:  # (the union of the bounds can span a room)
-        aabb = raw.getAABB(*key, physicsClientId=cid)
-        if any(body[f] != key[0] and allowed(f, key) and _within(aabb, bounds[k:k + 1], slack)
-               for k, f in enumerate(frames)):
+    for key in near:
+        lo, hi = raw.getAABB(*key, physicsClientId=cid)
+        if any(body[frames[k]] != key[0] and _meets(lows[k], highs[k], lo, hi) and allowed(frames[k], key)
+               for k in ask[key]):
             out.append(key)
     return out
 
 
-def _within(aabb, bounds, slack):
-    """Whether AABB ((x0, y0, z0), (x1, y1, z1)) meets any of the bounds (n, 6), widened as
-    ``overlap_query`` widens them."""
-    lo, hi = np.asarray(aabb[0], float), np.asarray(aabb[1], float)
-    w = slack + _QUERY_WIDEN * np.abs(bounds).max(axis=1, keepdims=True)
-    return bool(np.any(np.all(bounds[:, :3] - w <= hi, axis=1) & np.all(bounds[:, 3:] + w >= lo, axis=1)))
+def _meets(lo_a, hi_a, lo_b, hi_b):
+    """Whether two axis-aligned boxes, by corners, meet."""
+    return (lo_a[0] <= hi_b[0] and lo_a[1] <= hi_b[1] and lo_a[2] <= hi_b[2]
+            and lo_b[0] <= hi_a[0] and lo_b[1] <= hi_a[1] and lo_b[2] <= hi_a[2])
 
 
 def _partners(cid, tables, bounds, slack, exclude):
