@@ -263,11 +263,12 @@ class Articulated:
         ``_struck_free``."""
         t = self.tables
         fast, through = [], []  # through: (frame, bounds) of those moving more than their smallest half extent
+        moved = {}  # body -> its boxes' (k, move, bounds) where fast_boxes was asked
         for rec in self.watched:
             rec.fast = False  # until a fast box of it is judged against a partner
             if rec.motion is None:  # its state is not finite: pybullet's alone
                 continue
-            moves = rec.motion.fast_boxes(rec.box_links, rec.box_X, rec.box_half, rec.box_reach)
+            moves = moved[rec.body] = rec.motion.fast_boxes(rec.box_links, rec.box_X, rec.box_half, rec.box_reach)
             fast += [(rec, *rec.boxes[k], bounds) for k, _, bounds in moves]
             through += [(rec.boxes[k][0], bounds) for k, move, bounds in moves if move > rec.box_half[k].min()]
         if not fast:
@@ -278,7 +279,7 @@ class Articulated:
             if near:
                 near_unswept(near)
         rigid = self._rigid_near(fast, state, dt)
-        linked = self._linked_pairs(fast, dt)
+        linked = self._linked_pairs(fast, moved)
         found, reach, allowed = [], self.sweep_reach, t.filters.allowed
         seen = set()
         for k, (rec, f, i, box) in enumerate(fast):
@@ -348,11 +349,12 @@ class Articulated:
         stats.pushes += len(pushed)
         return stops, pushed
 
-    def _linked_pairs(self, fast, dt):
+    def _linked_pairs(self, fast, moved):
         """{k: [(frame, box)]}: for the k-th fast box, the articulated bodies' boxes whose swept
         bounds meet its own (pybullet's filters and a body's own boxes, unless it collides
         with itself, ruled out in the core): every box of a body with self-collision and a
-        fast box, and, when there are several articulated bodies, all of theirs."""
+        fast box, and, when there are several articulated bodies, all of theirs. ``moved``:
+        {body: fast_boxes' answer} for the bodies whose fast boxes are in ``fast``."""
         bodies = {rec.body for rec, *_ in fast if rec.ancestors is not None}
         if len(self.bodies) > 1:
             bodies = set(self.bodies)
@@ -363,8 +365,10 @@ class Articulated:
             rec = self.bodies[b]
             if rec.motion is None:
                 continue
-            for k, _, box in rec.motion.fast_boxes(rec.box_links, rec.box_X, rec.box_half,
-                                                   np.full(len(rec.boxes), -np.inf)):
+            # Its boxes not among the fast ones (those are in already, with the same bounds).
+            reach = np.full(len(rec.boxes), -np.inf)
+            reach[[k for k, _, _ in moved.get(b, ())]] = np.inf
+            for k, _, box in rec.motion.fast_boxes(rec.box_links, rec.box_X, rec.box_half, reach):
                 boxes.append(rec.boxes[k][1])
                 bounds.append(box)
         t = self.tables
@@ -372,14 +376,15 @@ class Articulated:
         f = t.filters
         pairs = _core.candidate_pairs(np.array(bounds, dtype=np.float64), len(fast), frame, t.body, t.self_collides,
                                       f.group, f.mask, f.mode)
-        out, ok = {}, self._link_ok
+        out, ok, frames = {}, self._link_ok, frame.tolist()
         for k, m in pairs.tolist():
             i, j = boxes[k], boxes[m]
             key = (i, j) if i < j else (j, i)
-            if key not in ok:
-                ok[key] = self._collide(fast[k][0], fast[k][1], int(frame[m]))
-            if ok[key]:
-                out.setdefault(k, []).append((int(frame[m]), j))
+            allowed = ok.get(key)
+            if allowed is None:
+                allowed = ok[key] = self._collide(fast[k][0], fast[k][1], frames[m])
+            if allowed:
+                out.setdefault(k, []).append((frames[m], j))
         return out
 
     def _rigid_near(self, fast, state, dt):
