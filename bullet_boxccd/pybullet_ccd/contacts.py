@@ -140,19 +140,21 @@ class _Paths:
                 self.track[f] = _Track([r])
             else:
                 tr.rows.append(r)
-        # The pairs' indices grouped by frame (each pair under both its frames), for pairs_of.
-        pf = self.frame[sw.pairs]
-        two = pf[:, 0] != pf[:, 1]
-        keys = np.concatenate((pf[:, 0], pf[two, 1]))
-        index = np.concatenate((np.arange(len(pf)), np.flatnonzero(two)))
-        order = np.lexsort((index, keys))
-        self._pair_frame, self._pair_index = keys[order], index[order]
+        self._by_frame = None  # the pairs' indices grouped by frame, once pairs_of is asked
         self.kinematic = kinematic
 
     def pairs_of(self, f):
         """Indices of the pairs with a box of frame f, ascending."""
-        lo, hi = np.searchsorted(self._pair_frame, [f, f + 1])
-        return self._pair_index[lo:hi]
+        if self._by_frame is None:  # each pair under both its frames
+            pf = self.frame[self.pairs]
+            two = pf[:, 0] != pf[:, 1]
+            keys = np.concatenate((pf[:, 0], pf[two, 1]))
+            index = np.concatenate((np.arange(len(pf)), np.flatnonzero(two)))
+            order = np.lexsort((index, keys))
+            self._by_frame = keys[order], index[order]
+        keys, index = self._by_frame
+        lo, hi = np.searchsorted(keys, [f, f + 1])
+        return index[lo:hi]
 
     def driver(self, f):
         """The kinematic frame that moves f (f itself, or its carrier's driver)."""
