@@ -466,6 +466,45 @@ def test_partial_steps_taken_again_shorter_leave_the_rest_of_the_world_as_pybull
     assert x_of(cid, flyer) == pytest.approx(-1.0 + 12 * 3.0 * DT, abs=1e-9)
 
 
+def _held_box(cid, use, start):
+    """A cube thrown at 60 m/s at a 1 cm wall from ``start`` (it strikes late in the
+    thirteenth step), while a second cube 5 m away, held to the world by a JOINT_FIXED
+    constraint, has its pivot moved 0.1 m in that step. Returns the held cube's fastest
+    speed over 30 steps of 1/240 s, and the BoxCCD (or None)."""
+    reset(cid)
+    box(cid, [0.005, 1, 1], [0, 0, 0], mass=0.0)
+    cube = box(cid, [0.05] * 3, [start, 0, 0])
+    held = box(cid, [0.05] * 3, [0, 5, 0])
+    joint = p.createConstraint(held, -1, -1, -1, p.JOINT_FIXED, [0, 0, 0], [0, 0, 0], [0, 5, 0], physicsClientId=cid)
+
+    def drive(k):
+        if k == 12:
+            throw(cid, cube, 60.0, (0, 0, 0))
+        if k == 13:
+            p.changeConstraint(joint, jointChildPivot=[0.1, 5, 0], physicsClientId=cid)
+
+    fastest = 0.0
+    ccd = BoxCCD(cid) if use else None
+    for k in range(30):
+        drive(k)
+        ccd.step() if ccd else p.stepSimulation(physicsClientId=cid)
+        fastest = max(fastest, float(np.linalg.norm(p.getBaseVelocity(held, physicsClientId=cid)[0])))
+    return fastest, ccd
+
+
+@pytest.mark.parametrize("start", [-0.5, -0.54, -0.548])
+def test_a_constraint_far_from_an_impact_pulls_its_box_no_faster_in_partial_steps(cid, start):
+    """pybullet corrects a constraint's error at erp x error / step: in the partial step of
+    an impact elsewhere, a short piece at the step's end, a held box the user's pivot move
+    left 0.1 m off was pulled at up to pybullet's velocity clamp. With the partial step's
+    ERPs scaled to its length it moves no faster than plain pybullet moves it (4.8 m/s; the
+    converged engine keeps it on its pivot)."""
+    plain, _ = _held_box(cid, False, start)
+    fastest, ccd = _held_box(cid, True, start)
+    assert ccd.stats.partial_steps >= 1
+    assert fastest <= plain + 1e-9, (fastest, plain)
+
+
 def _loose_bodies(cid):
     """A sphere (spinning), a maximal-coordinate capsule (spinning about its axis), a
     free-floating two-link capsule body (its joint still), a two-link capsule arm on a
@@ -1025,9 +1064,10 @@ def test_steps_taken_by_pybullet_directly_are_named_once(cid):
 
 
 def test_settings_pybullet_does_not_report_of_a_client_connected_before_the_import_are_named(tmp_path):
-    """A client connected before bullet_boxccd was imported may have a contactERP and a
-    collisionFilterMode that pybullet does not report: BoxCCD names them once (and not those
-    set again after the import); a client connected after the import is not named."""
+    """A client connected before bullet_boxccd was imported may have a contactERP, erp,
+    frictionERP and collisionFilterMode that pybullet does not report: BoxCCD names them once
+    (and not those set again after the import); a client connected after the import is not
+    named."""
     script = """
 import warnings
 import pybullet as p
@@ -1052,8 +1092,8 @@ with warnings.catch_warnings(record=True) as caught:
     assert out.returncode == 0, out.stderr
     lines = [line for line in out.stdout.splitlines() if line[:1].isdigit()]
     named = "this client was connected before bullet_boxccd was imported, and pybullet does not report its {}"
-    assert lines == [f"0 {[named.format('collisionFilterMode and contactERP')]!r}",
-                     f"1 {[named.format('collisionFilterMode')]!r}", "2 []"], out.stdout
+    assert lines == [f"0 {[named.format('collisionFilterMode, contactERP, erp and frictionERP')]!r}",
+                     f"1 {[named.format('collisionFilterMode, erp and frictionERP')]!r}", "2 []"], out.stdout
 
 
 @pytest.mark.parametrize("case, named", [("plain", True), ("maximal", True), ("pair filter", False),

@@ -203,11 +203,13 @@ class BoxCCD:
                                      "alone, unswept (a fast box can pass through in them); call BoxCCD.step() "
                                      "in their place")
         if j.unknown:
-            unknown = " and ".join(sorted(j.unknown))
+            *most, last = sorted(j.unknown)
+            unknown = f"{', '.join(most)} and {last}" if most else last
             self._warn(("unknown", unknown), f"this client was connected before bullet_boxccd was imported, and "
                                              f"pybullet does not report its {unknown}: BoxCCD takes pybullet's "
-                                             "defaults (contactERP 0.08, collisionFilterMode 1), and sets the "
-                                             "contact ERP back to that after its partial steps. Import "
+                                             "defaults (contactERP 0.08, erp 0.2, frictionERP 0.2, "
+                                             "collisionFilterMode 1), and sets the ERPs back to those after its "
+                                             "partial steps. Import "
                                              "bullet_boxccd before connecting, or set them again after importing it")
         if self.world.sync():
             self.stats.rediscoveries += 1
@@ -559,8 +561,9 @@ class BoxCCD:
             if self._partial:
                 if self._motors:
                     self._motors_back()
-                raw.setPhysicsEngineParameter(fixedTimeStep=h, contactERP=self.world.journal.contact_erp,
-                                              physicsClientId=self.cid)
+                j = self.world.journal
+                raw.setPhysicsEngineParameter(fixedTimeStep=h, contactERP=j.contact_erp, erp=j.erp,
+                                              frictionERP=j.friction_erp, physicsClientId=self.cid)
                 self._partial = False
         self._name_clamped()
         return events
@@ -605,20 +608,24 @@ class BoxCCD:
 
     def _take(self, piece, h, start):
         """Set the world to take a partial step of ``piece`` seconds from ``start`` into the
-        user's step of h: its contact ERP scaled by piece / h, so that the speed at which
-        pybullet's solver pushes an overlap out (ERP times depth over the step) is the user's
-        step's, not larger by h / piece; the user's forces, which pybullet cleared, given
-        again; and the user's position motors given again so that each asks for the
-        velocity it asked for over the step. pybullet's position motor drives its joint at
-        gain x error / step (a tenth of the step: ten times as fast), and fixes its largest
-        impulse at force x step when the command is given: a joint that followed the step's
-        motion from its start is at error x (1 - gain x s) a share s into it, so the gain is
-        scaled by (piece / h) / (1 - gain x s) (by piece / h where that is not above 0),
-        the force by the user's step / piece."""
+        user's step of h: its ERPs scaled by piece / h, so that the speed at which pybullet's
+        solver pushes an overlap out, or brings a constraint, a joint limit or a friction
+        anchor back to where it holds (ERP times the error over the step), is the user's
+        step's, not larger by h / piece (a box a constraint held 0.1 m off its pivot was
+        pulled at the velocity clamp in the partial step of an impact elsewhere); the
+        user's forces, which pybullet cleared, given again; and the user's position motors
+        given again so that each asks for the velocity it asked for over the step.
+        pybullet's position motor drives its joint at gain x error / step (a tenth of the
+        step: ten times as fast), and fixes its largest impulse at force x step when the
+        command is given: a joint that followed the step's motion from its start is at
+        error x (1 - gain x s) a share s into it, so the gain is scaled by (piece / h) / (1 -
+        gain x s) (by piece / h where that is not above 0), the force by the user's step /
+        piece."""
         self._partial = True
         cid = self.cid
-        raw.setPhysicsEngineParameter(fixedTimeStep=piece, contactERP=self.world.journal.contact_erp * piece / h,
-                                      physicsClientId=cid)
+        j = self.world.journal
+        raw.setPhysicsEngineParameter(fixedTimeStep=piece, contactERP=j.contact_erp * piece / h, erp=j.erp * piece / h,
+                                      frictionERP=j.friction_erp * piece / h, physicsClientId=cid)
         self._motors = position_motors(cid)
         s = start / h
         for (b, joint), kw in self._motors.items():

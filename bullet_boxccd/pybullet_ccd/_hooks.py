@@ -41,6 +41,9 @@ __all__ = ["Journal", "journal", "raw", "install", "new_serial", "last_serial", 
 # pybullet's default contactERP (the share of a contact's penetration its solver removes in a
 # step, as a velocity of erp depth / dt): measured, setting 0.08 leaves every world bit-identical.
 CONTACT_ERP = 0.08
+# Bullet's default erp (joints, user constraints and joint limits: their position error is
+# corrected at erp x error / dt) and frictionERP (friction anchors), which pybullet keeps.
+ERP, FRICTION_ERP = 0.2, 0.2
 # pybullet's default maxJointVelocity: it clamps a multibody's |v| (m/s) and |w| (rad/s) to it.
 MAX_VELOCITY = 100.0
 # pybullet's default linearDamping and angularDamping of a multibody, Bullet's 0.04f (a body
@@ -98,6 +101,8 @@ class Journal:
     param_values: dict = field(default_factory=dict)  # those settings as last set (set again alike: no change)
     num_substeps: int = 0  # as last set through setPhysicsEngineParameter (0: never set)
     contact_erp: float = CONTACT_ERP  # as last set through setPhysicsEngineParameter (pybullet reports none)
+    erp: float = ERP  # the same, of erp
+    friction_erp: float = FRICTION_ERP  # the same, of frictionERP
     max_velocity: dict = field(default_factory=dict)  # body -> maxJointVelocity set through changeDynamics
     damping: dict = field(default_factory=dict)  # body -> [linear, angular] damping set through changeDynamics
     # Collision filters, as pybullet's collision filter plugin keeps them.
@@ -159,7 +164,7 @@ _journals: dict = {}
 # is not known. pybullet reports neither of these settings.
 _connected_before: set = set()
 _MAX_CLIENTS = 1024  # pybullet's MAX_PHYSICS_CLIENTS
-UNREPORTED = ("contactERP", "collisionFilterMode")
+UNREPORTED = ("contactERP", "erp", "frictionERP", "collisionFilterMode")
 
 
 def journal(cid: int) -> Journal:
@@ -604,9 +609,10 @@ def _set_engine_parameter(cid, a, result):
     substeps = a.get("numSubSteps")
     if substeps is not None:
         j.num_substeps = int(substeps)
-    if a.get("contactERP") is not None:
-        j.contact_erp = float(a["contactERP"])
-        j.unknown.discard("contactERP")
+    for key, name in (("contactERP", "contact_erp"), ("erp", "erp"), ("frictionERP", "friction_erp")):
+        if a.get(key) is not None:
+            setattr(j, name, float(a[key]))
+            j.unknown.discard(key)
     _params_set(j, {k: a[k] for k in ("fixedTimeStep", "numSubSteps") if a.get(k) is not None})
 
 
