@@ -466,6 +466,45 @@ def test_partial_steps_taken_again_shorter_leave_the_rest_of_the_world_as_pybull
     assert x_of(cid, flyer) == pytest.approx(-1.0 + 12 * 3.0 * DT, abs=1e-9)
 
 
+def _joint_set_bar(cid, tip_speed, cubes_at=(0.2, 0.35)):
+    """A mass-0 fixed base with one revolute link, a 0.5 m bar, turned about z by
+    resetJointState before every step (no joint velocity) so that its tip moves at
+    ``tip_speed`` over free 6 cm cubes standing on a box floor at x = ``cubes_at`` (y = 0).
+    Returns the BoxCCDWarnings of 0.12 s of BoxCCD steps."""
+    reset(cid, -9.81)
+    box(cid, [5, 5, 0.05], [0, 0, -0.05], mass=0.0)
+    for x in cubes_at:
+        box(cid, [0.03] * 3, [x, 0, 0.03], mass=0.2)
+    bar = p.createCollisionShape(p.GEOM_BOX, halfExtents=[0.25, 0.005, 0.05], collisionFramePosition=[0.25, 0, 0],
+                                 physicsClientId=cid)
+    arm = p.createMultiBody(0, -1, basePosition=[0, -0.3, 0.08], linkMasses=[0], linkCollisionShapeIndices=[bar],
+                            linkVisualShapeIndices=[-1], linkPositions=[[0, 0, 0]], linkOrientations=[[0, 0, 0, 1]],
+                            linkInertialFramePositions=[[0, 0, 0]], linkInertialFrameOrientations=[[0, 0, 0, 1]],
+                            linkParentIndices=[0], linkJointTypes=[p.JOINT_REVOLUTE], linkJointAxis=[[0, 0, 1]],
+                            physicsClientId=cid)
+    ccd = BoxCCD(cid)
+    with warnings.catch_warnings(record=True) as said:
+        warnings.simplefilter("always")
+        for k in range(int(round(0.12 / DT))):
+            p.resetJointState(arm, 0, min(tip_speed / 0.5 * k * DT, math.pi / 2), physicsClientId=cid)
+            ccd.step()
+    return [str(w.message) for w in said if issubclass(w.category, BoxCCDWarning)]
+
+
+@pytest.mark.parametrize("tip_speed", [5.0, 30.0])
+def test_a_link_set_through_a_box_by_resetjointstate_is_named_once(cid, tip_speed):
+    """BoxCCD sweeps what a link does within a step, not a joint the user sets between
+    steps: a bar turned by resetJointState through two cubes passes them (pybullet at a
+    64 times finer step, the joint set at each, throws them at several m/s), and BoxCCD
+    says so once, naming the body, the link and a box it went through; turned through the
+    air, the cubes out of its way, it is not named."""
+    said = _joint_set_bar(cid, tip_speed)
+    assert len(said) == 1 and said[0].startswith("body 3: a joint set by resetJointState between steps moved its "
+                                                 "link 0"), said
+    assert " through a box of body 1" in said[0] or " through a box of body 2" in said[0], said
+    assert _joint_set_bar(cid, tip_speed, cubes_at=(2.0, 3.0)) == []
+
+
 def _held_box(cid, use, start):
     """A cube thrown at 60 m/s at a 1 cm wall from ``start`` (it strikes late in the
     thirteenth step), while a second cube 5 m away, held to the world by a JOINT_FIXED

@@ -43,7 +43,7 @@ from .. import _core
 from .._arrays import as_float_array
 from ..motion import pose_matrix
 from ..solver import DEFAULT_TOLERANCES, InvalidInputError, Tolerances
-from ._hooks import MAX_VELOCITY, last_serial, position_motors, raw, replay_impulses
+from ._hooks import MAX_VELOCITY, joints_set_since, last_serial, position_motors, raw, replay_impulses
 from .articulated import Articulated
 from .contacts import Contacts
 from .events import BoxCCDWarning, CCDEvent, CCDStats, ClientDisconnectedError, not_finite_message
@@ -270,6 +270,9 @@ class BoxCCD:
         if j.last_move <= seen:
             return [], [], set()
         self._moves_seen = j.last_move
+        jumps = joints_set_since(self.cid, seen)
+        if jumps and j.restored <= seen and j.reset <= seen:
+            self._name_joint_jumps(jumps, seen)
         if j.restored > seen:  # restoreState: every body jumped; no kinematic move is known
             self._state.read_poses(np.flatnonzero(t.kind == STATIC).tolist())
             return [], [], set(range(len(t.keys)))
@@ -282,6 +285,27 @@ class BoxCCD:
         # (a joint reset moves a body's links, not its fixed base)
         bases = [f for b, s in j.base_moved.items() if s > seen for f in t.frames_of.get(b, ()) if t.kind[f] == STATIC]
         return bases, [f for f in given if t.kind[f] == STATIC], set(moved)
+
+    def _name_joint_jumps(self, jumps, seen):
+        """Name once each articulated body whose joints the user set between steps
+        (resetJointState; ``jumps``: {body: {joint: position before}}, made after serial
+        ``seen``) so that a link box moved through a free body's box: BoxCCD sweeps what a
+        link does within a step, not such a set."""
+        j, state = self.world.journal, self._state
+        for b, joints in jumps.items():
+            rec = self._chains.bodies.get(b)
+            if rec is None or ("joint set", b) in self._warned or j.renewed.get(b, 0) > seen \
+                    or j.base_moved.get(b, 0) > seen:
+                continue
+            hit = self._chains.jumped_into(rec, joints, self._dt, lambda f: state.pose_of(f))
+            if hit is not None:
+                link, other, move = hit
+                self._warn(("joint set", b), f"body {b}: a joint set by resetJointState between steps moved its "
+                                             f"link {link} {move:.3g} m, through a box of body {other}: BoxCCD "
+                                             "sweeps what a link does within a step, not a joint set between "
+                                             "steps, so pybullet alone meets that box (pushes it out of the link, "
+                                             "or lets the link pass it). Drive the joint (a motor, or its "
+                                             "velocity) to have the link swept")
 
     # ------------------------------------------------------------- stepping
     def step(self) -> list:

@@ -36,7 +36,8 @@ import pybullet
 from .. import _core
 
 __all__ = ["Journal", "journal", "raw", "install", "new_serial", "last_serial", "replay_impulses", "position_motors",
-           "WRAPPED", "SIGNATURES", "bind", "shape_type", "MjcfLoad", "OR_MODE", "DAMPING", "damping"]
+           "joints_set_since", "WRAPPED", "SIGNATURES", "bind", "shape_type", "MjcfLoad", "OR_MODE", "DAMPING",
+           "damping"]
 
 # pybullet's default contactERP (the share of a contact's penetration its solver removes in a
 # step, as a velocity of erp depth / dt): measured, setting 0.08 leaves every world bit-identical.
@@ -116,6 +117,9 @@ class Journal:
     # its latest base pose reset alone.
     moved: dict = field(default_factory=dict)
     base_moved: dict = field(default_factory=dict)
+    # (body, joint) -> (its position before the first resetJointState* of it since the
+    # serial given, that serial): where a joint set between steps moved a link from.
+    joint_from: dict = field(default_factory=dict)
     velocity_set: dict = field(default_factory=dict)  # body -> serial of the user's latest resetBaseVelocity
     over_clamp: dict = field(default_factory=dict)  # body -> serial of the latest one above MAX_VELOCITY
     last_over: int = 0  # the latest serial in ``over_clamp``
@@ -649,6 +653,29 @@ def _moved(cid, a, result):
     j.moved[int(a["bodyUniqueId"])] = j.last_move = next(_serial)
 
 
+def joints_set_since(cid: int, serial: int) -> dict:
+    """{body: {joint: its position (a list) before it was first set by resetJointState*
+    after ``serial``}}; forgets every earlier such position."""
+    j = journal(cid)
+    out = {}
+    for (b, joint), (q, when) in j.joint_from.items():
+        if when > serial:
+            out.setdefault(b, {})[joint] = q
+    j.joint_from.clear()
+    return out
+
+
+def _joints_before(cid, a):
+    """Before a resetJointState*: keep each joint's position, where not kept already."""
+    j = journal(cid)
+    b = int(a["bodyUniqueId"])
+    joints = a["jointIndices"] if "jointIndices" in a else [a["jointIndex"]]
+    for joint in map(int, joints):
+        if (b, joint) not in j.joint_from:
+            j.joint_from[b, joint] = (list(raw.getJointStateMultiDof(b, joint, physicsClientId=cid)[0]),
+                                      next(_serial))
+
+
 def _base_moved(cid, a, result):
     _moved(cid, a, result)
     j = journal(cid)
@@ -960,10 +987,22 @@ def _silent_motor(args, kwargs) -> bool:
         return False
 
 
+# Notes taken before the call (what it changes is read first).
+_BEFORE = {"resetJointState": _joints_before, "resetJointStateMultiDof": _joints_before,
+           "resetJointStatesMultiDof": _joints_before}
+
+
 def _wrap(name, original, note):
     silent = _silent_motor if name.startswith("setJointMotorControl") else None
+    before = _BEFORE.get(name)
 
     def wrapper(*args, **kwargs):
+        if before is not None:
+            try:
+                a = bind(name, args, kwargs)
+                before(_cid(a), a)
+            except (pybullet.error, KeyError, TypeError, ValueError):
+                pass  # a call pybullet refuses (it says why)
         result = original(*args, **kwargs)
         if silent is None or not silent(args, kwargs):
             a = bind(name, args, kwargs)

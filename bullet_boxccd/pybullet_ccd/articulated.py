@@ -215,6 +215,46 @@ class Articulated:
             state.rows[rec.frame_index] = rec.motion.frame_rows(rec.link_of_frame)
             state.fresh.update(rec.frames)
 
+    def jumped_into(self, rec, joints, dt, pose_of):
+        """Where the user set joints of ``rec`` between steps (``joints``: {joint: its position
+        before}, one-degree joints only), the first (link, free body, how far the link's box
+        moved) of a link box that the set moved, straight along its joints, farther than its
+        sweep reach and through a free body's box standing where it stands; None if none.
+        ``pose_of(frame)``: a free frame's (position, orientation) now."""
+        cid, t = self.cid, self.tables
+        moving, q_spans, _ = rec.layout
+        pos, orn = raw.getBasePositionAndOrientation(rec.body, physicsClientId=cid)
+        q1 = [x for s in raw.getJointStatesMultiDof(rec.body, moving, physicsClientId=cid) for x in s[0]] \
+            if moving else []
+        q0 = list(q1)
+        for joint, (a, b) in zip(moving, q_spans):
+            before = joints.get(joint)
+            if before is not None:
+                if b - a != 1 or len(before) != 1:
+                    return None  # (a spherical joint's set is no straight move of q)
+                q0[a] = before[0]
+        if q0 == q1 or not all(map(math.isfinite, q0 + q1 + [*pos, *orn])):
+            return None
+        q, qdot = np.array(q1, dtype=np.float64), (np.array(q1) - np.array(q0)) / dt
+        motion = _core.ChainMotion(rec.chain.core, np.array([*pos, *orn] + [0.0] * 6), q, qdot, dt)
+        for k, move, bounds in motion.fast_boxes(rec.box_links, rec.box_X, rec.box_half, rec.box_reach):
+            f, i = rec.boxes[k]
+            near = [g for g in (t.index.get(key) for key in overlap_query(cid, bounds, 0.0))
+                    if g is not None and t.kind[g] == FREE and int(t.body[g]) != rec.body and t.filters.allowed(f, g)]
+            if not near:
+                continue
+            path = _core.LinkBoxPath(motion, rec.links[f], t.X_CS[i], t.half[i])
+            still = np.zeros((len(t.keys), 13))
+            for g in near:
+                p, o = pose_of(g)
+                still[g, POSE] = [*p, *o]
+            boxes = np.array([j for g in near for j in t.frame_boxes[g]], dtype=np.int64)
+            rows = _core.path_rows(still, dt, boxes, t.box_frame, t.X_CS, t.half)
+            for j, row in zip(boxes.tolist(), rows):
+                if not math.isnan(_core.paths_first_depth(path, _core.RowBoxPath(row), 0.0, 0.0)):
+                    return rec.links[f], int(t.body[t.box_frame[j]]), move
+        return None
+
     def name_clamped(self, name_base):
         """Name the joints of the bodies in ``clamp_seen`` (read at pybullet's default joint
         velocity clamp in a piece of the step) that the step leaves at it, and tell

@@ -111,6 +111,10 @@ class FrameState:
             self.sweeper.put_poses(frames, [pose[f]() for f in frames])
             self.fresh.update(frames)
 
+    def pose_of(self, f):
+        """Frame f's (position, orientation) as pybullet holds it now (``rows`` untouched)."""
+        return self._pose[f]()
+
     def name_not_finite(self, frames):
         """Tell ``not_finite`` those of ``frames`` whose pose pybullet holds not finite now (a
         pose the user gave; one read each, kept out of ``rows``)."""
