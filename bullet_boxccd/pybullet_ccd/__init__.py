@@ -297,7 +297,7 @@ class BoxCCD:
             if rec is None or ("joint set", b) in self._warned or j.renewed.get(b, 0) > seen \
                     or j.base_moved.get(b, 0) > seen:
                 continue
-            hit = self._chains.jumped_into(rec, joints, self._dt, lambda f: state.pose_of(f))
+            hit = self._chains.jumped_into(rec, joints, self._dt, state.pose_of)
             if hit is not None:
                 link, other, move = hit
                 self._warn(("joint set", b), f"body {b}: a joint set by resetJointState between steps moved its "

@@ -44,7 +44,7 @@ from .contacts import bounce, place
 from .events import CCDEvent, not_finite_message
 from .layout import ANGULAR_VELOCITY, POSE, TWIST, VELOCITY
 from .others import joint_layout, put_body
-from .sweep import CREEP, overlap_query, unswept_near
+from .sweep import CREEP, meet, overlap_query, unswept_near
 from .world import FREE, LINK
 
 __all__ = ["Articulated"]
@@ -323,7 +323,7 @@ class Articulated:
         found, reach, allowed = [], self.sweep_reach, t.filters.allowed
         seen = set()
         for k, (rec, f, i, box) in enumerate(fast):
-            pairs = [(g, j, other) for g, j, other, bounds in rigid if _meet(box, bounds) and allowed(f, g)]
+            pairs = [(g, j, other) for g, j, other, bounds in rigid if meet(box, bounds) and allowed(f, g)]
             pairs += [(g, j, None) for g, j in linked.get(k, ())]
             path = None
             for g, j, other in pairs:
@@ -544,11 +544,6 @@ def _moves(v, w, r, dt):
     """How far a point at most r from a frame's origin moves in dt at velocities v, w."""
     speed, spin = math.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]), math.sqrt(w[0] * w[0] + w[1] * w[1] + w[2] * w[2])
     return (speed + spin * r) * dt
-
-
-def _meet(a, b):
-    """Whether two bounds [lo (3), hi (3)] overlap."""
-    return a[0] <= b[3] and b[0] <= a[3] and a[1] <= b[4] and b[1] <= a[4] and a[2] <= b[5] and b[2] <= a[5]
 
 
 def _excluded(parent, bits):

@@ -25,7 +25,7 @@ from ._hooks import raw
 from .layout import PATH_ROW, POSE, TWIST
 from .world import FREE
 
-__all__ = ["Sweep", "sweep", "jump_sweep", "moves_into", "CREEP", "overlap_query"]
+__all__ = ["Sweep", "sweep", "jump_sweep", "moves_into", "CREEP", "overlap_query", "meet"]
 
 # A pair touching when the step (or a window of it) begins is a contact pybullet holds
 # unless it presses in by more than this fraction of the thinner box's half extent.
@@ -148,7 +148,7 @@ def unswept_near(cid, tables, frames, bounds, slack):
     # where it holds more shapes than there are boxes, each box's own query narrows them
     # down (pybullet's broad phase holds a shape's AABB within its own).
     w = slack + _QUERY_WIDEN * np.abs(bounds).max(axis=1, keepdims=True)
-    lows, highs = (bounds[:, :3] - w).tolist(), (bounds[:, 3:] + w).tolist()
+    widened = np.concatenate((bounds[:, :3] - w, bounds[:, 3:] + w), axis=1).tolist()
     rows = range(len(frames))
     if len(frames) < len(near):
         ask = {key: [] for key in near}
@@ -162,16 +162,15 @@ def unswept_near(cid, tables, frames, bounds, slack):
     out, allowed, body = [], tables.filters.allowed_shape, tables.body
     for key in near:
         lo, hi = raw.getAABB(*key, physicsClientId=cid)
-        if any(body[frames[k]] != key[0] and _meets(lows[k], highs[k], lo, hi) and allowed(frames[k], key)
+        if any(body[frames[k]] != key[0] and meet(widened[k], (*lo, *hi)) and allowed(frames[k], key)
                for k in ask[key]):
             out.append(key)
     return out
 
 
-def _meets(lo_a, hi_a, lo_b, hi_b):
-    """Whether two axis-aligned boxes, by corners, meet."""
-    return (lo_a[0] <= hi_b[0] and lo_a[1] <= hi_b[1] and lo_a[2] <= hi_b[2]
-            and lo_b[0] <= hi_a[0] and lo_b[1] <= hi_a[1] and lo_b[2] <= hi_a[2])
+def meet(a, b):
+    """Whether two bounds [lo (3), hi (3)] overlap."""
+    return a[0] <= b[3] and b[0] <= a[3] and a[1] <= b[4] and b[1] <= a[4] and a[2] <= b[5] and b[2] <= a[5]
 
 
 def _partners(cid, tables, bounds, slack, exclude):
