@@ -8,18 +8,22 @@
 2. ``bar``: a mass-0 bar (0.4 x 0.02 x 0.1 m) turned about its end at 20-60 rad/s by a
    teleport to its pose at every step (and given its spin too, in half the scenes) sweeps
    a free 5 cm cube out along it and off its end.
+3. ``struck``: a fixed-base three-link box arm (upright links 0.08 x 0.08 x 0.3 m, 2 kg)
+   holding its pose under velocity motors (target 0, 0-1000 N m) is struck at a link by
+   a free cube (6-10 cm, 0.5-3 kg) thrown at 20-80 m/s, at 240 or 60 Hz: the link is
+   knocked away, as much as its motors let it be.
 
 Per scene: the cube's velocity after the run against the converged engine's (plain
 pybullet at a 128 times finer step at 240 Hz, 256 at 60 Hz, the mean over 4 offsets of
 its step grid, every per-step command given at every fine step), as a share of the
-driving speed (the arm's tip, the bar's tip); and the deepest overlap of the cube and
+driving speed (the arm's tip, the bar's tip, the thrown cube); and the deepest overlap of the cube and
 what drives it (or the table) where a step ends. Printed: each method's median error,
 mean and largest error, the scenes more than 0.15 off, and the scenes ending a step
 deeper than 1 cm or twice the converged engine's deepest.
 
 Run
 ---
-    python benchmarks/pushed.py                 # ~10 s on 2 cores
+    python benchmarks/pushed.py                 # ~20 s on 2 cores
     python benchmarks/pushed.py --family bar --scenes 8
 """
 
@@ -62,6 +66,19 @@ def bar_scenes(n, seed=6):
                         mass=float(rng.choice([0.05, 0.2, 1.0])), rest=float(rng.choice([0.0, 0.5])),
                         table=bool(rng.random() < 0.5),
                         dt=1 / 60 if slow else 1 / 240, steps=8 if slow else 24))
+    return out
+
+
+def struck_scenes(n, seed=7):
+    rng = np.random.default_rng(seed)
+    out = []
+    for k in range(n):
+        slow = k % 2 == 1
+        out.append(dict(link=int(rng.integers(0, 3)), height=float(rng.uniform(0.05, 0.25)),
+                        half=float(rng.uniform(0.03, 0.05)), mass=float(rng.choice([0.5, 1.0, 2.0, 3.0])),
+                        speed=float(rng.uniform(20.0, 80.0)), force=float(rng.choice([0.0, 100.0, 300.0, 1000.0])),
+                        aim=(float(rng.uniform(-0.2, 0.2)), float(rng.uniform(-0.2, 0.2))), table=False,
+                        dt=1 / 60 if slow else 1 / 240, steps=3 if slow else 12))
     return out
 
 
@@ -127,7 +144,34 @@ def build_bar(cid, s):
     return cube, others, command
 
 
-BUILD = {"arm": build_arm, "bar": build_bar}
+def build_struck(cid, s):
+    link = _shape(cid, [0.04, 0.04, 0.15], [0, 0, 0.15])
+    arm = p.createMultiBody(0, _shape(cid, [0.1, 0.1, 0.05]), -1, [0, 0, 0.05], linkMasses=[2.0] * 3,
+                            linkCollisionShapeIndices=[link] * 3, linkVisualShapeIndices=[-1] * 3,
+                            linkPositions=[[0, 0, 0.05], [0, 0, 0.3], [0, 0, 0.3]],
+                            linkOrientations=[[0, 0, 0, 1]] * 3, linkInertialFramePositions=[[0, 0, 0.15]] * 3,
+                            linkInertialFrameOrientations=[[0, 0, 0, 1]] * 3, linkParentIndices=[0, 1, 2],
+                            linkJointTypes=[p.JOINT_REVOLUTE] * 3, linkJointAxis=[[0, 1, 0]] * 3,
+                            physicsClientId=cid)
+    for j in range(-1, 3):
+        p.changeDynamics(arm, j, maxJointVelocity=1000, linearDamping=0, angularDamping=0, jointDamping=0,
+                         restitution=0.5, physicsClientId=cid)
+    for j in range(3):
+        p.setJointMotorControl2(arm, j, p.VELOCITY_CONTROL, targetVelocity=0, force=s["force"], physicsClientId=cid)
+    # Thrown along +x (tilted by the aim) at a point of the link's face, to touch it in the second step.
+    d = np.array([1.0, *s["aim"]])
+    d /= np.linalg.norm(d)
+    target = np.array([-0.04, 0.0, 0.1 + 0.3 * s["link"] + s["height"]])
+    start = target - d * (s["speed"] * 1.5 * s["dt"] + s["half"] * math.sqrt(3))
+    cube = p.createMultiBody(s["mass"], _shape(cid, [s["half"]] * 3), -1, start.tolist(), physicsClientId=cid)
+    p.changeDynamics(cube, -1, maxJointVelocity=1000, linearDamping=0, angularDamping=0, restitution=0.5,
+                     lateralFriction=0.5, physicsClientId=cid)
+    p.resetBaseVelocity(cube, (d * s["speed"]).tolist(), [0, 0, 0], physicsClientId=cid)
+    return cube, [arm], None
+
+
+BUILD = {"arm": build_arm, "bar": build_bar, "struck": build_struck}
+SCENES = {"arm": (arm_scenes, 40), "bar": (bar_scenes, 16), "struck": (struck_scenes, 16)}
 
 
 def run(family, s, method, fine=1, phase=0.0):
@@ -166,7 +210,7 @@ def scene(job):
     fine = 128 if s["dt"] < 1 / 100 else 256
     refs = [run(family, s, "plain", fine, j / 4) for j in range(4)]
     v_ref, ref_deepest = np.mean([r[0] for r in refs], axis=0), max(r[1] for r in refs)
-    drive = (0.6 if family == "arm" else 0.4) * s["omega"]  # the tip's speed
+    drive = s["speed"] if family == "struck" else (0.6 if family == "arm" else 0.4) * s["omega"]  # a tip's speed
     out = {"family": family, "scene": k, "ref_deepest": ref_deepest}
     for method in ("boxccd", "plain"):
         v, deepest = run(family, s, method)
@@ -176,16 +220,16 @@ def scene(job):
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--family", choices=["arm", "bar", "both"], default="both")
-    ap.add_argument("--scenes", type=int, default=None, help="scenes per family (default: arm 40, bar 16)")
+    ap.add_argument("--family", choices=["arm", "bar", "struck", "all"], default="all")
+    ap.add_argument("--scenes", type=int, default=None, help="scenes per family (default: arm 40, bar 16, struck 16)")
     ap.add_argument("--jobs", type=int, default=2)
     ap.add_argument("--verbose", action="store_true", help="each scene's figures too")
     args = ap.parse_args()
-    families = ["arm", "bar"] if args.family == "both" else [args.family]
+    families = list(SCENES) if args.family == "all" else [args.family]
     jobs = []
     for f in families:
-        n = args.scenes or {"arm": 40, "bar": 16}[f]
-        jobs += [(f, k, s) for k, s in enumerate((arm_scenes if f == "arm" else bar_scenes)(n))]
+        make, n = SCENES[f]
+        jobs += [(f, k, s) for k, s in enumerate(make(args.scenes or n))]
     t0 = time.perf_counter()
     with multiprocessing.Pool(args.jobs) as pool:
         rows = pool.map(scene, jobs)
