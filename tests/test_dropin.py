@@ -1560,15 +1560,18 @@ def test_a_box_at_a_velocity_clamp_it_was_given_is_named_with_that_clamp(cid):
 
 def test_a_velocity_given_above_the_clamp_is_named_though_a_contact_slows_it_below(cid):
     """A cube given 150 m/s along a floor is cut to 100 by pybullet and slowed below it by
-    friction in the same step (99.96): it is named all the same, once; one given as much
-    with its clamp lifted is not, nor one given 150 m/s and removed before the step."""
+    friction in the same step (99.96): it is named all the same, once; so is one whose
+    clamp was raised to 120, with that clamp; one given as much with its clamp lifted to
+    1000 is not, nor one given 150 m/s and removed before the step."""
     reset(cid, -9.81)
     p.loadURDF(os.path.join(pybullet_data.getDataPath(), "plane.urdf"), physicsClientId=cid)
     clamped = p.loadURDF(CUBE_SMALL, [0, 0, 0.025], physicsClientId=cid)
     lifted = p.loadURDF(CUBE_SMALL, [0, 1, 0.025], physicsClientId=cid)
     gone = p.loadURDF(CUBE_SMALL, [0, 2, 0.025], physicsClientId=cid)
+    raised = p.loadURDF(CUBE_SMALL, [0, 3, 0.025], physicsClientId=cid)
     p.changeDynamics(lifted, -1, maxJointVelocity=1000, physicsClientId=cid)
-    for b in (clamped, lifted, gone):
+    p.changeDynamics(raised, -1, maxJointVelocity=120, physicsClientId=cid)
+    for b in (clamped, lifted, gone, raised):
         p.resetBaseVelocity(b, np.array([150.0, 0, 0]), np.zeros(3), physicsClientId=cid)  # as arrays too
     p.removeBody(gone, physicsClientId=cid)
     ccd = BoxCCD(cid)
@@ -1579,8 +1582,10 @@ def test_a_velocity_given_above_the_clamp_is_named_though_a_contact_slows_it_bel
         for _ in range(2):
             ccd.step()
     said = [str(w.message) for w in caught if issubclass(w.category, BoxCCDWarning)]
-    assert len(said) == 1 and said[0].startswith(f"body {clamped} moves or turns at 100"), said
+    assert sorted(m.split(" (m/s")[0] for m in said) == [f"body {clamped} moves or turns at 100",
+                                                         f"body {raised} moves or turns at 120"], said
     assert 99.0 < first < 100.0
+    assert p.getBaseVelocity(raised, physicsClientId=cid)[0][0] < 120.0  # (slowed below its clamp)
 
 
 def test_the_velocity_clamp_is_named_where_the_step_leaves_the_world_at_it(cid):

@@ -324,9 +324,10 @@ class BoxCCD:
         if self._fast_unswept and self._timed():
             self._name_fast_unswept()
         if j.last_over > self._over_seen:  # given a velocity above the clamp, which pybullet cut as it stepped
-            for b, serial in j.over_clamp.items():
-                if serial > self._over_seen:
-                    self._name_clamp(b)
+            for b, (serial, fastest) in j.over_clamp.items():
+                clamp = j.max_velocity.get(b, MAX_VELOCITY)  # (the one this step had)
+                if serial > self._over_seen and fastest > clamp:
+                    self._name_clamp(b, clamp)
             self._over_seen = j.last_over
         return events
 

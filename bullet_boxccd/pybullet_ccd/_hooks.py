@@ -121,7 +121,10 @@ class Journal:
     # serial given, that serial): where a joint set between steps moved a link from.
     joint_from: dict = field(default_factory=dict)
     velocity_set: dict = field(default_factory=dict)  # body -> serial of the user's latest resetBaseVelocity
-    over_clamp: dict = field(default_factory=dict)  # body -> serial of the latest one above MAX_VELOCITY
+    # body -> (serial, its fastest component) of the latest velocity given with a component
+    # above the lowest clamp a body may have had when it was given (its maxJointVelocity then,
+    # or pybullet's default): what the clamp at the next step cut is told there.
+    over_clamp: dict = field(default_factory=dict)
     last_over: int = 0  # the latest serial in ``over_clamp``
     restored: int = 0  # restoreState: every body jumped
     last_move: int = 0  # the latest serial of a move: ``moved``, ``velocity_set``, ``restored``, ``stepped``
@@ -686,17 +689,19 @@ def _reset_base_velocity(cid, a, result):
     j = journal(cid)
     b = int(a["objectUniqueId"])
     j.velocity_set[b] = j.last_move = next(_serial)
-    if _above(a.get("linearVelocity"), MAX_VELOCITY) or _above(a.get("angularVelocity"), MAX_VELOCITY):
-        j.over_clamp[b] = j.last_over = j.last_move
+    fastest = max(_fastest(a.get("linearVelocity")), _fastest(a.get("angularVelocity")))
+    if fastest > min(MAX_VELOCITY, j.max_velocity.get(b, MAX_VELOCITY)):
+        j.over_clamp[b] = (j.last_move, fastest)
+        j.last_over = j.last_move
 
 
-def _above(vector, limit):
-    """Whether a vector pybullet took (any sequence of numbers, a numpy array) has a
-    component beyond +-limit."""
+def _fastest(vector):
+    """The largest magnitude of a component of a vector pybullet took (any sequence of
+    numbers, a numpy array); 0 if none."""
     try:
-        return vector is not None and any(abs(float(x)) > limit for x in vector)
+        return max((abs(float(x)) for x in vector), default=0.0) if vector is not None else 0.0
     except (TypeError, ValueError):
-        return False
+        return 0.0
 
 
 def _restore_state(cid, a, result):
