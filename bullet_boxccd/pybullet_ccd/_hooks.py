@@ -371,6 +371,7 @@ def _forget(j, b):
     j.link_geometry.pop(b, None)
     j.damping.pop(b, None)
     j.joint_damping = {k: v for k, v in j.joint_damping.items() if k[0] != b}
+    j.joint_from = {k: v for k, v in j.joint_from.items() if k[0] != b}
     j.impulses[:] = [x for x in j.impulses if _impulse_body(x) != b]  # pybullet dropped them with the body
 
 
