@@ -43,6 +43,11 @@ from bullet_boxccd import BoxCCD
 RAW_STEP = p._bullet_boxccd_originals["stepSimulation"]
 
 
+def _pace(slow, steps):
+    """A scene's step and run: 60 Hz for ``steps[0]`` steps if ``slow``, else 240 Hz for ``steps[1]``."""
+    return dict(dt=1 / 60, steps=steps[0]) if slow else dict(dt=1 / 240, steps=steps[1])
+
+
 def arm_scenes(n, seed=5):
     rng = np.random.default_rng(seed)
     out = []
@@ -53,7 +58,7 @@ def arm_scenes(n, seed=5):
                         omega=float(rng.choice([15.0, 25.0, 40.0, 60.0])),
                         force=float(rng.choice([100.0, 300.0, 500.0, 1000.0])),
                         rest=float(rng.choice([0.0, 0.5])), fric=float(rng.choice([0.2, 0.5, 0.8])),
-                        table=bool(rng.random() < 0.5), dt=1 / 60 if slow else 1 / 240, steps=6 if slow else 24))
+                        table=bool(rng.random() < 0.5), **_pace(slow, (6, 24))))
     return out
 
 
@@ -64,8 +69,7 @@ def bar_scenes(n, seed=6):
         slow = k % 4 == 3
         out.append(dict(omega=float(rng.uniform(20.0, 60.0)), spin=bool(k % 2),
                         mass=float(rng.choice([0.05, 0.2, 1.0])), rest=float(rng.choice([0.0, 0.5])),
-                        table=bool(rng.random() < 0.5),
-                        dt=1 / 60 if slow else 1 / 240, steps=8 if slow else 24))
+                        table=bool(rng.random() < 0.5), **_pace(slow, (8, 24))))
     return out
 
 
@@ -78,7 +82,7 @@ def struck_scenes(n, seed=7):
                         half=float(rng.uniform(0.03, 0.05)), mass=float(rng.choice([0.5, 1.0, 2.0, 3.0])),
                         speed=float(rng.uniform(20.0, 80.0)), force=float(rng.choice([0.0, 100.0, 300.0, 1000.0])),
                         aim=(float(rng.uniform(-0.2, 0.2)), float(rng.uniform(-0.2, 0.2))), table=False,
-                        dt=1 / 60 if slow else 1 / 240, steps=3 if slow else 12))
+                        **_pace(slow, (3, 12))))
     return out
 
 
