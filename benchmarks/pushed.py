@@ -45,47 +45,49 @@ from bullet_boxccd import BoxCCD
 RAW_STEP = p._bullet_boxccd_originals["stepSimulation"]
 
 
-def _pace(slow, steps):
-    """A scene's step and run: 60 Hz for ``steps[0]`` steps if ``slow``, else 240 Hz for ``steps[1]``."""
-    return dict(dt=1 / 60, steps=steps[0]) if slow else dict(dt=1 / 240, steps=steps[1])
+def _scenes(n, seed, draw, slow_every, steps):
+    """n scenes of ``draw(rng, k)`` (a dict), every ``slow_every``-th at 60 Hz for ``steps[0]``
+    steps (the last of each run of that many), the others at 240 Hz for ``steps[1]``."""
+    rng = np.random.default_rng(seed)
+    out = []
+    for k in range(n):
+        slow = k % slow_every == slow_every - 1
+        out.append(dict(draw(rng, k), dt=1 / 60 if slow else 1 / 240, steps=steps[0] if slow else steps[1]))
+    return out
+
+
+def _arm(rng, k):
+    r, a = rng.uniform(0.36, 0.58), rng.uniform(-0.1, 0.6)
+    return dict(at=(r * math.cos(a), r * math.sin(a)), mass=float(rng.choice([0.05, 0.2, 0.5, 1.0, 2.0])),
+                omega=float(rng.choice([15.0, 25.0, 40.0, 60.0])),
+                force=float(rng.choice([100.0, 300.0, 500.0, 1000.0])),
+                rest=float(rng.choice([0.0, 0.5])), fric=float(rng.choice([0.2, 0.5, 0.8])),
+                table=bool(rng.random() < 0.5))
+
+
+def _bar(rng, k):
+    return dict(omega=float(rng.uniform(20.0, 60.0)), spin=bool(k % 2), mass=float(rng.choice([0.05, 0.2, 1.0])),
+                rest=float(rng.choice([0.0, 0.5])), table=bool(rng.random() < 0.5))
+
+
+def _struck(rng, k):
+    return dict(link=int(rng.integers(0, 3)), height=float(rng.uniform(0.05, 0.25)),
+                half=float(rng.uniform(0.03, 0.05)),
+                mass=float(rng.choice([0.5, 1.0, 2.0, 3.0])), speed=float(rng.uniform(20.0, 80.0)),
+                force=float(rng.choice([0.0, 100.0, 300.0, 1000.0])),
+                aim=(float(rng.uniform(-0.2, 0.2)), float(rng.uniform(-0.2, 0.2))), table=False)
 
 
 def arm_scenes(n, seed=5):
-    rng = np.random.default_rng(seed)
-    out = []
-    for k in range(n):
-        r, a = rng.uniform(0.36, 0.58), rng.uniform(-0.1, 0.6)
-        slow = k % 2 == 1
-        out.append(dict(at=(r * math.cos(a), r * math.sin(a)), mass=float(rng.choice([0.05, 0.2, 0.5, 1.0, 2.0])),
-                        omega=float(rng.choice([15.0, 25.0, 40.0, 60.0])),
-                        force=float(rng.choice([100.0, 300.0, 500.0, 1000.0])),
-                        rest=float(rng.choice([0.0, 0.5])), fric=float(rng.choice([0.2, 0.5, 0.8])),
-                        table=bool(rng.random() < 0.5), **_pace(slow, (6, 24))))
-    return out
+    return _scenes(n, seed, _arm, 2, (6, 24))
 
 
 def bar_scenes(n, seed=6):
-    rng = np.random.default_rng(seed)
-    out = []
-    for k in range(n):
-        slow = k % 4 == 3
-        out.append(dict(omega=float(rng.uniform(20.0, 60.0)), spin=bool(k % 2),
-                        mass=float(rng.choice([0.05, 0.2, 1.0])), rest=float(rng.choice([0.0, 0.5])),
-                        table=bool(rng.random() < 0.5), **_pace(slow, (8, 24))))
-    return out
+    return _scenes(n, seed, _bar, 4, (8, 24))
 
 
 def struck_scenes(n, seed=7):
-    rng = np.random.default_rng(seed)
-    out = []
-    for k in range(n):
-        slow = k % 2 == 1
-        out.append(dict(link=int(rng.integers(0, 3)), height=float(rng.uniform(0.05, 0.25)),
-                        half=float(rng.uniform(0.03, 0.05)), mass=float(rng.choice([0.5, 1.0, 2.0, 3.0])),
-                        speed=float(rng.uniform(20.0, 80.0)), force=float(rng.choice([0.0, 100.0, 300.0, 1000.0])),
-                        aim=(float(rng.uniform(-0.2, 0.2)), float(rng.uniform(-0.2, 0.2))), table=False,
-                        **_pace(slow, (3, 12))))
-    return out
+    return _scenes(n, seed, _struck, 2, (3, 12))
 
 
 def _shape(cid, half, at=(0, 0, 0)):
