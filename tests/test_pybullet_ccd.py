@@ -38,8 +38,13 @@ def com_x(cid, b):
 
 
 def closest(cid, ev):
-    pts = p.getClosestPoints(ev.body_a, ev.body_b, 0.01, ev.link_a, ev.link_b, physicsClientId=cid)
-    return min(c[8] for c in pts) if pts else np.inf
+    """The pair's signed distance by pybullet's measure, the shallower of its two orders: its
+    box detector prefers a face's axis to an edge's, and which face depends on the order (a
+    cube spinning at 1,000 rad/s stopped 0.125 mm deep at a wall by the separating axes is
+    0.27 mm deep one way and 0.11 mm the other)."""
+    a, b = (ev.body_a, ev.link_a), (ev.body_b, ev.link_b)
+    both = [p.getClosestPoints(x[0], y[0], 0.01, x[1], y[1], physicsClientId=cid) for x, y in ((a, b), (b, a))]
+    return max(min(c[8] for c in pts) if pts else np.inf for pts in both)
 
 
 # With no partial step left, the bodies of a contact pybullet would resolve wrongly end

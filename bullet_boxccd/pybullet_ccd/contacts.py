@@ -38,7 +38,14 @@ state at the end of the step decides:
   such pair once the step's partial steps are used up (``max_partial_steps``), stops on
   its own at that time instead, with its velocity there; pybullet resolves it as the
   next step begins, where a pair stopped at an impact is struck (its impulse acts whole
-  then, as for the pair a partial step begins at). A body stops earlier where its path
+  then, as for the pair a partial step begins at). A pair that was touching as the window
+  began keeps the window's solve whole where it stops: taken in proportion just after the
+  window began, the solve would be undone and the pair would press in again from the same
+  state, step after step (a rod held at a wall for 80 steps); kept, each solve takes
+  more of the approach, as a fine step's do. Where Bullet clamps the turn of one of its
+  bodies, the pair's approach on the turn Bullet integrates is taken out as it stops
+  (``Contacts._part``): pybullet's solver sees the whole spin and would never resolve it.
+  A body stops earlier where its path
   takes it by then more than ``depth_tolerance`` deeper into a box it was left to pybullet
   with (a turning box's corner dipping into a face and out again by the step's end).
 * A body's velocity where the world goes back to is in proportion between its velocities
@@ -207,8 +214,9 @@ class _Paths:
     def stop(self, f, tau, whole=False):
         """Frame f stands still from tau on, with the velocity it had at tau, as the world
         going back there would give it (``Contacts._world_to``; ``whole``: its velocity after
-        the step, less the rest's gravity, as for a struck body): kept from after the step
-        whatever its contact, a stopped body would gain a step's gravity every step it stands."""
+        the step, less the rest's gravity, as for a struck body or a pair touching as the
+        step began): kept from after the step with its gravity, a stopped body would gain a
+        step's gravity every step it stands."""
         tr = self.track[f]
         tr.frozen = self.com(f, tau)
         if tr.velocity is None:
@@ -581,12 +589,60 @@ class Contacts:
             paths.track[d].velocity = (v, paths.twist(d)[1])
             return [d]
         changed = [f for f in (fa, fb) if paths.stoppable(f)]
-        whole = not info["impact"] and bool(self._clamp_cut((fa, fb)))
+        whole = info["initial"] or bool(self._clamp_cut((fa, fb)))
         for f in changed:
             paths.stop(f, self._stop_time(paths, f, tau), whole)
+        if info["initial"] and changed:
+            self._part(paths, i, j, min(paths.track[f].stop_time for f in changed))
         if info["impact"]:  # pybullet's solver meets it as the next step begins
             self.struck.update(changed)
         return changed
+
+    def _part(self, paths, i, j, tau):
+        """A pair touching as the window began that still goes in, stopped at tau, where Bullet
+        clamps the turn of one of its bodies (by more than pi/4 in the window): pybullet's
+        solver sees the whole spin, its integrator turns the body slower, so a corner the
+        solver sees leaving is driven in on the integrated path (a rod moving into a wall at
+        37 m/s, spinning at 450 rad/s: its touching corner leaves at 1 m/s), and given the same
+        contact as the next step begins, pybullet leaves it going in, step after step. So the
+        approach is taken out here, on the motion Bullet integrates: the fastest approach
+        along the pair's axis of least overlap, of the points where an edge of one box is
+        within ``depth_tolerance`` of the other, is turned into a parting at the pair's
+        combined restitution, by a change of its free bodies' velocities along that axis
+        shared as a collision shares it between their masses (their spins kept)."""
+        fa, fb = int(paths.frame[i]), int(paths.frame[j])
+        ends = [self._end(paths, f, tau) for f in (fa, fb)]
+        if all(turned >= 1.0 for _, _, _, turned, _ in ends):
+            return
+        rows = paths.rows[[i, j]]
+        X = _core.row_poses(rows, np.array([tau, tau]))
+        half = rows[:, PATH_ROW["half_extents"]]
+        _, n = _core.paths_separation(_core.RowBoxPath(rows[0]), _core.RowBoxPath(rows[1]), tau)
+        points = np.concatenate((_edges_in(X[0], half[0], X[1], half[1], self.depth_tolerance),
+                                 _edges_in(X[1], half[1], X[0], half[0], self.depth_tolerance)))
+        (ca, va, wa, sa, ma), (cb, vb, wb, sb, mb) = ends
+        if not len(points) or not np.all(np.isfinite(n)) or ma + mb == 0.0:
+            return
+        moving = (vb - va) + np.cross(sb * wb, points - cb) - np.cross(sa * wa, points - ca)
+        approach = -float((moving @ n).min())
+        if approach <= 0.0:
+            return
+        e = math.prod(raw.getDynamicsInfo(*paths.tables.keys[f], physicsClientId=self.cid)[5] for f in (fa, fb))
+        change = (1.0 + e) * approach / (ma + mb)
+        for f, (_, v, w, _, m), sign in ((fa, ends[0], -1.0), (fb, ends[1], 1.0)):
+            if m > 0.0:
+                paths.track[f].velocity = (v + sign * m * change * n, w)
+
+    def _end(self, paths, f, tau):
+        """Frame f at tau for ``_part``: (centre of mass, velocity, spin, the share of its spin
+        Bullet integrates, inverse mass: none unless a free body stopped in this pass)."""
+        v, w = paths.twist(f)
+        turn = float(np.linalg.norm(w)) * paths.dt
+        turned = _bullet_turn(turn) / turn if turn > 0.0 else 1.0
+        moves = paths.free(f) and paths.status(f) == _STOPPED
+        mass = raw.getDynamicsInfo(*paths.tables.keys[f], physicsClientId=self.cid)[0] if moves else 0.0
+        return paths.com(f, tau)[:3, 3], np.array(v, float), np.array(w, float), turned, \
+            1.0 / mass if mass > 0.0 else 0.0
 
     def _stop_time(self, paths, f, tau):
         """When frame f stops for a contact at tau: then, unless its path takes it by then more
@@ -823,6 +879,39 @@ def _carry(row, tau, X):
     frame = _frame_of(row)
     F_tau, F_1 = _core.row_poses(np.stack([frame, frame]), np.array([tau, 1.0]))
     return F_1 @ np.linalg.solve(F_tau, X)
+
+
+_EDGES = np.array([(a, b) for a in range(8) for b in range(a + 1, 8) if bin(a ^ b).count("1") == 1])
+_CORNERS = np.array([[(k >> 2) & 1, (k >> 1) & 1, k & 1] for k in range(8)], float) * 2.0 - 1.0
+
+
+def _edges_in(XA, ha, XB, hb, margin):
+    """The middles of the parts of box A's 12 edges inside box B grown by ``margin`` (boxes:
+    poses (4, 4), half extents (3,)), world: where two overlapping boxes touch (any overlap
+    of two boxes has an edge of one through the other)."""
+    corners = (_CORNERS * ha) @ XA[:3, :3].T + XA[:3, 3]
+    local = (corners - XB[:3, 3]) @ XB[:3, :3]  # in B's frame
+    p0, d = local[_EDGES[:, 0]], local[_EDGES[:, 1]] - local[_EDGES[:, 0]]
+    lim = hb + margin
+    lo, hi = np.zeros(len(d)), np.ones(len(d))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t1, t2 = (-lim - p0) / d, (lim - p0) / d
+    flat = d == 0.0
+    inside = np.abs(p0) <= lim
+    t_lo = np.where(flat, np.where(inside, -np.inf, np.inf), np.minimum(t1, t2))
+    t_hi = np.where(flat, np.where(inside, np.inf, -np.inf), np.maximum(t1, t2))
+    lo = np.maximum(lo, t_lo.max(axis=1))
+    hi = np.minimum(hi, t_hi.min(axis=1))
+    keep = lo <= hi
+    mid = p0[keep] + 0.5 * (lo[keep] + hi[keep])[:, None] * d[keep]
+    return mid @ XB[:3, :3].T + XB[:3, 3]
+
+
+def _bullet_turn(angle):
+    """The angle Bullet turns a body by in a step where its spin would turn it by ``angle``:
+    above pi/4 it clamps it, to 2 atan(angle / (pi/4) tan(pi/8)) (``_core/paths/step_path.hpp``)."""
+    quarter = 0.25 * math.pi
+    return angle if angle <= quarter else 2.0 * math.atan(angle / quarter * math.tan(0.5 * quarter))
 
 
 def _still_row(X, row):
