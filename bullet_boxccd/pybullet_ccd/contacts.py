@@ -682,11 +682,16 @@ class Contacts:
             return
         lo, hi = info["window"]
         t_event = lo + c.t * (hi - lo)
-        if not info["initial"]:
-            # The judgement's contact is the solve's on boxes grown by the allowance of one fit
-            # over the rest of the window (centimetres for a box spinning fast): the event is
-            # the boxes' own first touch on Bullet's path, and the contact there.
-            a, b = _core.RowBoxPath(paths.rows[i]), _core.RowBoxPath(paths.rows[j])
+        # The judgement's contact is the solve's on boxes grown by the allowance of one fit
+        # over the rest of the window (centimetres for a box spinning fast, a metre for a rod
+        # at 1,000 rad/s): the event is the boxes' own first touch on Bullet's path (the
+        # window's start for a pair touching then), and the contact there.
+        a, b = _core.RowBoxPath(paths.rows[i]), _core.RowBoxPath(paths.rows[j])
+        if info["initial"]:
+            exact = _core.paths_window_contact(a, b, t_event, min(1.0, t_event + _EVENT_WINDOW), self.tolerances._core)
+            if exact is not None:
+                c = exact
+        else:
             touch = _core.paths_first_depth(a, b, t_event, 0.0)
             if not math.isnan(touch):
                 exact = _core.paths_window_contact(a, b, max(touch - _EVENT_WINDOW, t_event), touch,
