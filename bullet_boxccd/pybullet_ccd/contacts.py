@@ -41,7 +41,7 @@ state at the end of the step decides:
   then, as for the pair a partial step begins at). A pair that was touching as the window
   began keeps the window's solve whole where it stops: taken in proportion just after the
   window began, the solve would be undone and the pair would press in again from the same
-  state, step after step (a rod held at a wall for 80 steps); kept, each solve takes
+  state, step after step (a plate in a crowd held at a wall for 83 steps); kept, each solve takes
   more of the approach, as a fine step's do. Where Bullet clamps the turn of one of its
   bodies, the pair's approach on the turn Bullet integrates is taken out as it stops
   (``Contacts._part``): pybullet's solver sees the whole spin and would never resolve it.
