@@ -136,10 +136,13 @@ def test_a_touching_pair_that_parts_for_good_is_not_looked_at():
     assert c is not None and not wrong and not parted and np.isnan(again)
 
 
-def test_a_touching_pair_pressed_through_is_never_apart_first():
+@pytest.mark.parametrize("end", [0.5, 100.0])
+def test_a_touching_pair_pressed_through_is_never_apart_first(end):
     """0.1 mm in at the start and driven through the wall: it ends apart on the far side,
-    but reached the pressing depth first: not parted (the press is acted on)."""
-    c, wrong, s, _, parted, again, *_ = judge(rows(WALL, (0, 0), CUBE, (-0.1099, 0.5)), s_touch=0.0)
+    but reached the pressing depth first: not parted (the press is acted on). So too when
+    it is through before the first time the pair is looked at for parting (100 m in the
+    step: 0.4 m in its first 1/256, the cube and wall together 0.22 m)."""
+    c, wrong, s, _, parted, again, *_ = judge(rows(WALL, (0, 0), CUBE, (-0.1099, end)), s_touch=0.0)
     assert c is not None and wrong and not np.isnan(s)
     assert not parted and np.isnan(again)
 

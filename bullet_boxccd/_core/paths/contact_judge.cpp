@@ -109,8 +109,10 @@ Judgement judge_contact(const double *row_a, const double *row_b, double lo, dou
     }
     if (out.wrong || with_time) depth_time();
     if (out.wrong && initial) {
+        // Apart at a sample after going past the thinner box's middle (through a thin wall
+        // between two samples) is not parted: it went through.
         const double apart = first_apart(a, b, penetration, target);
-        out.parted = !std::isnan(apart);
+        out.parted = !std::isnan(apart) && !(first_depth(a, b, 0.0, start + thin) <= apart);
         if (out.parted) {
             out.again = first_depth(a, b, apart, 0.0);
         } else if (after_impact) {
