@@ -7,7 +7,8 @@ metres, randomly turned, placed apart; a box that finds no free place is left ou
 at up to 20, 60, 150 or 300 m/s in random directions and spinning (each axis a normal
 draw of up to 20 rad/s standard deviation), restitution 0, 0.3 or 0.8 (walls 0.5), no
 damping, every box 1 kg (so no heavy-on-light sandwich), in maximal coordinates
-(``useMaximalCoordinates=True``, so pybullet's gyroscopic divergence is not involved),
+(``useMaximalCoordinates=True``, so pybullet's gyroscopic divergence is not involved;
+``--multibody`` for multibodies, which it spins up to their velocity clamp),
 with gravity in most seeds, at a step dt of 1/240, 1/60 or 1/30 s, ``numSubSteps`` 1, 2
 or 4, and the room at 0, 1e3 or 1e4 m from the origin. The default scenes: seed 4 at its
 own dt (214 boxes thrown at up to 300 m/s in a room 34.6 m wide with 5.8 cm walls,
@@ -56,10 +57,11 @@ per method). ``--quick`` writes
 
 Run
 ---
-    python benchmarks/crowd.py                  # seeds 4 and 60@15, ~1 min on 2 cores (one process)
-    python benchmarks/crowd.py --quick          # ~30 s: the same scenes, 25 steps each
-    python benchmarks/crowd.py --knob max_partial_steps=32
+    python benchmarks/crowd.py                  # seeds 4 and 60@15, ~10 s on 2 cores (one process)
+    python benchmarks/crowd.py --quick          # ~5 s: the same scenes, 25 steps each
+    python benchmarks/crowd.py --knob max_partial_steps=32              # ~25 s
     python benchmarks/crowd.py --seeds 1,2,3 --steps 40 --png ''
+    python benchmarks/crowd.py --multibody --no-ref --csv '' --png ''     # ~1 min
 
 ``--seeds`` takes seeds, each at its own dt or, written ``seed@H``, at dt = 1/H s.
 Runs are serial (one process), so timings are not shared with another run.
@@ -104,7 +106,7 @@ QUICK_STEPS = 25
 
 # ------------------------------------------------------------------- scenes
 def params(seed):
-    """The seed's scene parameters (as benchmarks' crowd repro draws them)."""
+    """The seed's scene parameters."""
     r = np.random.default_rng(seed)
     P = dict(seed=seed)
     P["n"] = int(r.integers(50, 301))
@@ -397,6 +399,9 @@ def main(argv=None):
     ap.add_argument("--knob", action="append", default=[], metavar="K=V[,K=V]",
                     help="another BoxCCD method with these keyword arguments (repeatable)")
     ap.add_argument("--no-ref", action="store_true", help="without the fine reference (the slowest method)")
+    ap.add_argument("--multibody", action="store_true",
+                    help="the boxes as multibodies (useMaximalCoordinates=False), where pybullet's explicit "
+                         "gyroscopic term spins fast elongated boxes up to their velocity clamp")
     ap.add_argument("--csv", default=None, help="results CSV ('' for none; default benchmarks/results/crowd.csv)")
     ap.add_argument("--png", default=None, help="the picture ('' for none; default docs/crowd.png)")
     args = ap.parse_args(argv)
@@ -405,6 +410,8 @@ def main(argv=None):
     png_path = os.path.join(ROOT, "docs", name + ".png") if args.png is None else args.png
     cap = args.steps or (QUICK_STEPS if args.quick else None)
     scenes = scene_list(args.seeds, cap)
+    for P in scenes:
+        P["maximal"] = not args.multibody
     methods = ["plain", "boxccd"] + [f"boxccd {k.strip()}" for k in args.knob] + ([] if args.no_ref else ["ref"])
     kws = {m: parse_knob(m[len("boxccd"):]) for m in methods if m.startswith("boxccd")}
 

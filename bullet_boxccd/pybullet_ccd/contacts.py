@@ -38,14 +38,10 @@ state at the end of the step decides:
   such pair once the step's partial steps are used up (``max_partial_steps``), stops on
   its own at that time instead, with its velocity there; pybullet resolves it as the
   next step begins, where a pair stopped at an impact is struck (its impulse acts whole
-  then, as for the pair a partial step begins at). A pair that was touching as the window
-  began keeps the window's solve whole where it stops: taken in proportion just after the
-  window began, the solve would be undone and the pair would press in again from the same
-  state, step after step (a plate in a crowd held at a wall for 83 steps); kept, each solve takes
-  more of the approach, as a fine step's do. Where Bullet clamps the turn of one of its
-  bodies, the pair's approach on the turn Bullet integrates is taken out as it stops
-  (``Contacts._part``): pybullet's solver sees the whole spin and would never resolve it.
-  A body stops earlier where its path
+  then, as for the pair a partial step begins at). Where Bullet clamps the turn of a body
+  of a pair that was touching as the window began, pybullet's solver sees the whole spin
+  and would never resolve the contact: the pair's centres of mass are parted as it stops
+  (``Contacts._part``). A body stops earlier where its path
   takes it by then more than ``depth_tolerance`` deeper into a box it was left to pybullet
   with (a turning box's corner dipping into a face and out again by the step's end).
 * A body's velocity where the world goes back to is in proportion between its velocities
@@ -214,9 +210,8 @@ class _Paths:
     def stop(self, f, tau, whole=False):
         """Frame f stands still from tau on, with the velocity it had at tau, as the world
         going back there would give it (``Contacts._world_to``; ``whole``: its velocity after
-        the step, less the rest's gravity, as for a struck body or a pair touching as the
-        step began): kept from after the step with its gravity, a stopped body would gain a
-        step's gravity every step it stands."""
+        the step, less the rest's gravity, as for a struck body): kept from after the step
+        whatever its contact, a stopped body would gain a step's gravity every step it stands."""
         tr = self.track[f]
         tr.frozen = self.com(f, tau)
         if tr.velocity is None:
@@ -589,7 +584,7 @@ class Contacts:
             paths.track[d].velocity = (v, paths.twist(d)[1])
             return [d]
         changed = [f for f in (fa, fb) if paths.stoppable(f)]
-        whole = info["initial"] or bool(self._clamp_cut((fa, fb)))
+        whole = not info["impact"] and bool(self._clamp_cut((fa, fb)))
         for f in changed:
             paths.stop(f, self._stop_time(paths, f, tau), whole)
         if info["initial"] and changed:
@@ -604,31 +599,33 @@ class Contacts:
         solver sees the whole spin, its integrator turns the body slower, so a corner the
         solver sees leaving is driven in on the integrated path (a rod moving into a wall at
         37 m/s, spinning at 450 rad/s: its touching corner leaves at 1 m/s), and given the same
-        contact as the next step begins, pybullet leaves it going in, step after step. So the
-        approach is taken out here, on the motion Bullet integrates: the fastest approach
-        along the pair's axis of least overlap, of the points where an edge of one box is
-        within ``depth_tolerance`` of the other, is turned into a parting at the pair's
-        combined restitution, by a change of its free bodies' velocities along that axis
-        shared as a collision shares it between their masses (their spins kept)."""
+        contact as the next step begins, pybullet leaves it going in, step after step. Where
+        the points at which an edge of one box is within ``depth_tolerance`` of the other
+        approach on the motion Bullet integrates, along the pair's axis of least overlap, the
+        pair's centres of mass part along it as a collision of two particles parts them: the
+        approach of the centres turned into a parting at the pair's combined restitution (at
+        most 1), shared between their masses, their spins kept, so that no kinetic energy is
+        made (nothing is done where the centres do not approach)."""
         fa, fb = int(paths.frame[i]), int(paths.frame[j])
         ends = [self._end(paths, f, tau) for f in (fa, fb)]
-        if all(turned >= 1.0 for _, _, _, turned, _ in ends):
+        (ca, va, wa, sa, ma), (cb, vb, wb, sb, mb) = ends
+        if min(sa, sb) >= 1.0 or ma + mb == 0.0:
             return
         rows = paths.rows[[i, j]]
+        _, n = _core.paths_separation(_core.RowBoxPath(rows[0]), _core.RowBoxPath(rows[1]), tau)
+        closing = -float((vb - va) @ n)  # the centres' approach
+        if closing <= 0.0 or not np.all(np.isfinite(n)):
+            return
         X = _core.row_poses(rows, np.array([tau, tau]))
         half = rows[:, PATH_ROW["half_extents"]]
-        _, n = _core.paths_separation(_core.RowBoxPath(rows[0]), _core.RowBoxPath(rows[1]), tau)
         points = np.concatenate((_edges_in(X[0], half[0], X[1], half[1], self.depth_tolerance),
                                  _edges_in(X[1], half[1], X[0], half[0], self.depth_tolerance)))
-        (ca, va, wa, sa, ma), (cb, vb, wb, sb, mb) = ends
-        if not len(points) or not np.all(np.isfinite(n)) or ma + mb == 0.0:
-            return
         moving = (vb - va) + np.cross(sb * wb, points - cb) - np.cross(sa * wa, points - ca)
-        approach = -float((moving @ n).min())
-        if approach <= 0.0:
+        if not len(points) or float((moving @ n).min()) >= 0.0:
             return
-        e = math.prod(raw.getDynamicsInfo(*paths.tables.keys[f], physicsClientId=self.cid)[5] for f in (fa, fb))
-        change = (1.0 + e) * approach / (ma + mb)
+        e = min(1.0, math.prod(raw.getDynamicsInfo(*paths.tables.keys[f], physicsClientId=self.cid)[5]
+                                for f in (fa, fb)))
+        change = (1.0 + e) * closing / (ma + mb)
         for f, (_, v, w, _, m), sign in ((fa, ends[0], -1.0), (fb, ends[1], 1.0)):
             if m > 0.0:
                 paths.track[f].velocity = (v + sign * m * change * n, w)
@@ -685,13 +682,14 @@ class Contacts:
         # The judgement's contact is the solve's on boxes grown by the allowance of one fit
         # over the rest of the window (centimetres for a box spinning fast, a metre for a rod
         # at 1,000 rad/s): the event is the boxes' own first touch on Bullet's path (the
-        # window's start for a pair touching then), and the contact there.
+        # window's start for a pair pressing in from there), and the contact there. (That of
+        # another corner of a pair touching as the window began, striking, is its own already.)
         a, b = _core.RowBoxPath(paths.rows[i]), _core.RowBoxPath(paths.rows[j])
-        if info["initial"]:
+        if info["initial"] and not info["impact"]:
             exact = _core.paths_window_contact(a, b, t_event, min(1.0, t_event + _EVENT_WINDOW), self.tolerances._core)
             if exact is not None:
                 c = exact
-        else:
+        elif not info["initial"]:
             touch = _core.paths_first_depth(a, b, t_event, 0.0)
             if not math.isnan(touch):
                 exact = _core.paths_window_contact(a, b, max(touch - _EVENT_WINDOW, t_event), touch,
