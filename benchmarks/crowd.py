@@ -72,8 +72,6 @@ This is a benchmark, not a test: it asserts nothing.
 from __future__ import annotations
 
 import argparse
-import ast
-import csv
 import math
 import os
 import platform
@@ -90,7 +88,7 @@ import numpy as np  # noqa: E402
 import pybullet as p  # noqa: E402
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from _report import code_version  # noqa: E402
+from _report import code_version, knobs, write_csv  # noqa: E402
 
 # Imported before any world is built: it wraps pybullet's world-changing calls (its journal
 # of user moves), which BoxCCD needs to have seen.
@@ -213,16 +211,6 @@ def scene_list(spec, steps_cap=None):
 
 
 # --------------------------------------------------------------------- one run
-def parse_knob(text):
-    kw = {}
-    for item in text.split(","):
-        if item.strip():
-            k, v = item.split("=", 1)
-            try:
-                kw[k.strip()] = ast.literal_eval(v.strip())
-            except (ValueError, SyntaxError):
-                kw[k.strip()] = v.strip()
-    return kw
 
 
 def run(P, method, kw=None):
@@ -413,7 +401,7 @@ def main(argv=None):
     for P in scenes:
         P["maximal"] = not args.multibody
     methods = ["plain", "boxccd"] + [f"boxccd {k.strip()}" for k in args.knob] + ([] if args.no_ref else ["ref"])
-    kws = {m: parse_knob(m[len("boxccd"):]) for m in methods if m.startswith("boxccd")}
+    kws = {m: knobs(m[len("boxccd"):]) for m in methods if m.startswith("boxccd")}
 
     import bullet_boxccd
 
@@ -450,12 +438,7 @@ def main(argv=None):
     print(f"\nescapes of the reference are its own tunneling (a fine step of dt/{FINE} still moves a box at 300 m/s "
           "further than a thin wall is thick); it is the reference for freezing and overlaps")
     if csv_path:
-        os.makedirs(os.path.dirname(os.path.abspath(csv_path)), exist_ok=True)
-        with open(csv_path, "w", newline="") as f:
-            wr = csv.DictWriter(f, fieldnames=list(rows[0]))
-            wr.writeheader()
-            for r in rows:
-                wr.writerow({k: (f"{v:.6g}" if isinstance(v, float) else v) for k, v in r.items()})
+        write_csv(csv_path, rows)
     if png_path:
         os.makedirs(os.path.dirname(os.path.abspath(png_path)), exist_ok=True)
         plot(scenes, methods, results, png_path)

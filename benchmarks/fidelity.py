@@ -60,8 +60,6 @@ deterministic head-on cases and the glancing family).
 from __future__ import annotations
 
 import argparse
-import ast
-import csv
 import math
 import multiprocessing as mp
 import os
@@ -78,7 +76,7 @@ import pybullet as p  # noqa: E402
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from _fidelity_scenes import FAMILIES, G, World  # noqa: E402
-from _report import code_version  # noqa: E402
+from _report import code_version, knobs, write_csv  # noqa: E402
 
 # Imported before any world is built: it wraps pybullet's world-changing calls (its journal
 # of user moves), which BoxCCD needs to have seen.
@@ -107,15 +105,7 @@ def _raw_step():
 def parse_method(method):
     """(kind, numSubSteps, BoxCCD keyword arguments)."""
     if method.startswith("boxccd"):
-        kw = {}
-        for item in method[len("boxccd"):].strip().split(","):
-            if item.strip():
-                k, v = item.split("=", 1)
-                try:
-                    kw[k.strip()] = ast.literal_eval(v.strip())
-                except (ValueError, SyntaxError):
-                    kw[k.strip()] = v.strip()
-        return "boxccd", 0, kw
+        return "boxccd", 0, knobs(method[len("boxccd"):])
     if method.startswith("sub"):
         return "sub", int(method[3:]), {}
     return method, 0, {}
@@ -522,12 +512,7 @@ def main(argv=None):
     rows = table_rows(results, cost, fams, methods)
     print_tables(rows, fams, methods)
     summary(rows, fams, methods)
-    os.makedirs(os.path.dirname(os.path.abspath(csv_path)), exist_ok=True)
-    with open(csv_path, "w", newline="") as f:
-        wr = csv.DictWriter(f, fieldnames=list(rows[0]))
-        wr.writeheader()
-        for r in rows:
-            wr.writerow({k: (f"{v:.6g}" if isinstance(v, float) else v) for k, v in r.items()})
+    write_csv(csv_path, rows)
     plot(rows, fams, methods, png_path)
     print(f"\n{len(jobs)} runs in {time.perf_counter() - t0:.0f} s; written: {csv_path}, {png_path}")
 
