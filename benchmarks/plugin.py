@@ -62,8 +62,8 @@ them itself and reads the velocities at each: its reads are 4 N), and one cube s
 them). Per repeat, plain ``stepSimulation``, the N ``getBaseVelocity`` reads alone, and
 ``BoxCCD.step()`` are timed in turn (this process's CPU time, mean over a block of
 steps; the min over repeats, as the machine may carry other load); printed: the plugin's overhead over
-plain as a multiple of the reads (target at most 2) and, for the slider, the
-plugin's ratio to plain (target at most 3).
+plain as a multiple of the reads (bound: at most 2) and, for the slider, the
+plugin's ratio to plain (bound: at most 3).
 
 Then the scenes above. Then, tunneling only, ``--extra-seeds`` more seeds (default 100) on the 10-box scene
 for plain, the plugin (both modes), substeps 8 and 16 and native CCD (the pile is off
@@ -241,14 +241,14 @@ def small_worlds(repeats, csv_path):
         r["overhead_in_reads"] = (r["plugin_us"] - r["plain_us"]) / r["reads_us"]
         r["ratio_to_plain"] = r["plugin_us"] / r["plain_us"]
         slider = r["world"].startswith("1 sliding")
-        target = ("x plain <= 3: " + ("met" if r["ratio_to_plain"] <= 3.0 else "NOT met")) if slider else \
-            ("overhead <= 2 reads: " + ("met" if r["overhead_in_reads"] <= 2.0 else "NOT met"))
+        bound = ("x plain <= 3: " + ("within" if r["ratio_to_plain"] <= 3.0 else "ABOVE")) if slider else \
+            ("overhead <= 2 reads: " + ("within" if r["overhead_in_reads"] <= 2.0 else "ABOVE"))
         table.append((r["world"], f"{r['plain_us']:.1f}", f"{r['reads_us']:.1f}", f"{r['plugin_us']:.1f}",
                       f"{r['overhead_in_reads']:.2f}", f"{r['ratio_to_plain']:.2f}", f"{r['swept']}/{r['steps']}",
-                      target))
+                      bound))
     print_table(f"small worlds (us of CPU time per step, min over {repeats} repeats; reads: the N getBaseVelocity "
                 "calls)",
-                ("world", "plain", "reads", "plugin", "overhead / reads", "x plain", "swept/steps", "target"),
+                ("world", "plain", "reads", "plugin", "overhead / reads", "x plain", "swept/steps", "bound"),
                 table)
     write_csv([{k: round(v, 3) if isinstance(v, float) else v for k, v in r.items()} for r in rows], csv_path)
 
@@ -362,24 +362,24 @@ def print_extra(extra, seeds, window):
 
 def _zero_tunneling_verdict(plug, zero):
     if plug["tunneled"]:
-        return f"tunneled {plug['tunneled']}/{plug['shots']}: NOT met"
+        return f"tunneled {plug['tunneled']}/{plug['shots']}: no"
     if not zero:
         return (f"{plug['us_per_step_median']:.0f} us at zero tunneling; no substep count up to "
-                f"{SUBSTEPS[-1]} reaches zero: met")
+                f"{SUBSTEPS[-1]} reaches zero: yes")
     best = min(zero, key=lambda r: r["us_per_step_median"])
     ok = plug["us_per_step_median"] < best["us_per_step_median"]
     return (f"{plug['us_per_step_median']:.0f} us vs cheapest zero-tunneling {best['method']} "
-            f"{best['us_per_step_median']:.0f} us: {'met' if ok else 'NOT met'}")
+            f"{best['us_per_step_median']:.0f} us: {'yes' if ok else 'no'}")
 
 
-def print_targets(results, sizes):
-    print("\ntargets")
+def print_bounds(results, sizes):
+    print("\nbounds")
     by = {(r["n_boxes"], r["method"]): r for r in results}
     for pm in PLUGINS:
         if (100, "plain") in by and (100, pm) in by:
             ov = by[(100, pm)]["us_per_step_median"] / by[(100, "plain")]["us_per_step_median"] - 1.0
-            print(f"  {pm} overhead at 100 boxes: {100 * ov:.0f} % of a plain step (target <= 30 %): "
-                  f"{'met' if ov <= 0.30 else 'NOT met'}")
+            print(f"  {pm} overhead at 100 boxes: {100 * ov:.0f} % of a plain step (bound 30 %): "
+                  f"{'within' if ov <= 0.30 else 'ABOVE'}")
     for n in sizes:
         zero = [by[(n, f"substeps {k}")] for k in SUBSTEPS
                 if (n, f"substeps {k}") in by and by[(n, f"substeps {k}")]["tunneled"] == 0]
@@ -446,7 +446,7 @@ def main(argv=None):
     print_scenes(results, phase_rows)
     if extra:
         results += print_extra(extra, extra_seeds, args.window)
-    print_targets(results, args.sizes)
+    print_bounds(results, args.sizes)
     tunneled_csv = os.path.join(results_dir, "plugin_tunneled.csv")
     print_tunneled(tunnel_log + extra_log, tunneled_csv)
     write_csvs(results, tunnel_log + extra_log, args.csv, tunneled_csv)
