@@ -603,11 +603,11 @@ class Contacts:
         the points at which an edge of one box is within ``depth_tolerance`` of the other
         approach on the motion Bullet integrates, along the pair's axis of least overlap, the
         pair's centres of mass part along it as a collision of two particles parts them: the
-        approach of the centres turned into a parting at the pair's combined restitution (at
-        most 1), shared between their masses, their spins kept, so that no kinetic energy is
+        approach of the centres turned into a parting at the pair's combined restitution (as
+        pybullet reports it, at most 1), shared between their masses, their spins kept, so that no kinetic energy is
         made (nothing is done where the centres do not approach)."""
         fa, fb = int(paths.frame[i]), int(paths.frame[j])
-        ends = [self._end(paths, f, tau) for f in (fa, fb)]
+        ends = [self._body_at(paths, f, tau) for f in (fa, fb)]
         (ca, va, wa, sa, ma), (cb, vb, wb, sb, mb) = ends
         if min(sa, sb) >= 1.0 or ma + mb == 0.0:
             return
@@ -630,7 +630,7 @@ class Contacts:
             if m > 0.0:
                 paths.track[f].velocity = (v + sign * m * change * n, w)
 
-    def _end(self, paths, f, tau):
+    def _body_at(self, paths, f, tau):
         """Frame f at tau for ``_part``: (centre of mass, velocity, spin, the share of its spin
         Bullet integrates, inverse mass: none unless a free body stopped in this pass)."""
         v, w = paths.twist(f)
@@ -896,15 +896,14 @@ def _edges_in(XA, ha, XB, hb, margin):
     local = (corners - XB[:3, 3]) @ XB[:3, :3]  # in B's frame
     p0, d = local[_EDGES[:, 0]], local[_EDGES[:, 1]] - local[_EDGES[:, 0]]
     lim = hb + margin
-    lo, hi = np.zeros(len(d)), np.ones(len(d))
     with np.errstate(divide="ignore", invalid="ignore"):
         t1, t2 = (-lim - p0) / d, (lim - p0) / d
     flat = d == 0.0
     inside = np.abs(p0) <= lim
     t_lo = np.where(flat, np.where(inside, -np.inf, np.inf), np.minimum(t1, t2))
     t_hi = np.where(flat, np.where(inside, np.inf, -np.inf), np.maximum(t1, t2))
-    lo = np.maximum(lo, t_lo.max(axis=1))
-    hi = np.minimum(hi, t_hi.min(axis=1))
+    lo = np.maximum(0.0, t_lo.max(axis=1))
+    hi = np.minimum(1.0, t_hi.min(axis=1))
     keep = lo <= hi
     mid = p0[keep] + 0.5 * (lo[keep] + hi[keep])[:, None] * d[keep]
     return mid @ XB[:3, :3].T + XB[:3, 3]
