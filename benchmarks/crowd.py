@@ -107,7 +107,7 @@ QUICK_STEPS = 25
 
 # ------------------------------------------------------------------- scenes
 def params(seed):
-    """The seed's scene parameters."""
+    """Scene parameters drawn from a random generator seeded with ``seed``."""
     r = np.random.default_rng(seed)
     P = dict(seed=seed)
     P["n"] = int(r.integers(50, 301))

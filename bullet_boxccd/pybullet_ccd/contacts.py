@@ -604,42 +604,36 @@ class Contacts:
         approach on the motion Bullet integrates, along the pair's axis of least overlap, the
         pair's centres of mass part along it as a collision of two particles parts them: the
         approach of the centres turned into a parting at the pair's combined restitution (as
-        pybullet reports it, at most 1), shared between their masses, their spins kept, so that no kinetic energy is
-        made (nothing is done where the centres do not approach)."""
-        fa, fb = int(paths.frame[i]), int(paths.frame[j])
-        ends = [self._body_at(paths, f, tau) for f in (fa, fb)]
-        (ca, va, wa, sa, ma), (cb, vb, wb, sb, mb) = ends
-        if min(sa, sb) >= 1.0 or ma + mb == 0.0:
+        pybullet reports it, at most 1), shared between the masses of its free bodies stopped
+        in this pass (what else it touches does not move), their spins kept, so that no
+        kinetic energy is made (nothing is done where the centres do not approach)."""
+        frames = (int(paths.frame[i]), int(paths.frame[j]))
+        (va, wa), (vb, wb) = twists = [paths.twist(f) for f in frames]
+        sa, sb = (_turned(w, paths.dt) for _, w in twists)
+        if min(sa, sb) >= 1.0:
             return
         rows = paths.rows[[i, j]]
         _, n = _core.paths_separation(_core.RowBoxPath(rows[0]), _core.RowBoxPath(rows[1]), tau)
         closing = -float((vb - va) @ n)  # the centres' approach
-        if closing <= 0.0 or not np.all(np.isfinite(n)):
+        if not closing > 0.0 or not np.all(np.isfinite(n)):
             return
         X = _core.row_poses(rows, np.array([tau, tau]))
         half = rows[:, PATH_ROW["half_extents"]]
         points = np.concatenate((_edges_in(X[0], half[0], X[1], half[1], self.depth_tolerance),
                                  _edges_in(X[1], half[1], X[0], half[0], self.depth_tolerance)))
+        ca, cb = (paths.com(f, tau)[:3, 3] for f in frames)
         moving = (vb - va) + np.cross(sb * wb, points - cb) - np.cross(sa * wa, points - ca)
         if not len(points) or float((moving @ n).min()) >= 0.0:
             return
-        e = min(1.0, math.prod(raw.getDynamicsInfo(*paths.tables.keys[f], physicsClientId=self.cid)[5]
-                                for f in (fa, fb)))
-        change = (1.0 + e) * closing / (ma + mb)
-        for f, (_, v, w, _, m), sign in ((fa, ends[0], -1.0), (fb, ends[1], 1.0)):
+        dynamics = [raw.getDynamicsInfo(*paths.tables.keys[f], physicsClientId=self.cid) for f in frames]
+        inverse = [1.0 / d[0] if d[0] > 0.0 and paths.free(f) and paths.status(f) == _STOPPED else 0.0
+                   for f, d in zip(frames, dynamics)]
+        if sum(inverse) == 0.0:
+            return
+        change = (1.0 + min(1.0, dynamics[0][5] * dynamics[1][5])) * closing / sum(inverse)
+        for f, (v, w), m, sign in zip(frames, twists, inverse, (-1.0, 1.0)):
             if m > 0.0:
                 paths.track[f].velocity = (v + sign * m * change * n, w)
-
-    def _body_at(self, paths, f, tau):
-        """Frame f at tau for ``_part``: (centre of mass, velocity, spin, the share of its spin
-        Bullet integrates, inverse mass: none unless a free body stopped in this pass)."""
-        v, w = paths.twist(f)
-        turn = float(np.linalg.norm(w)) * paths.dt
-        turned = _bullet_turn(turn) / turn if turn > 0.0 else 1.0
-        moves = paths.free(f) and paths.status(f) == _STOPPED
-        mass = raw.getDynamicsInfo(*paths.tables.keys[f], physicsClientId=self.cid)[0] if moves else 0.0
-        return paths.com(f, tau)[:3, 3], np.array(v, float), np.array(w, float), turned, \
-            1.0 / mass if mass > 0.0 else 0.0
 
     def _stop_time(self, paths, f, tau):
         """When frame f stops for a contact at tau: then, unless its path takes it by then more
@@ -909,11 +903,12 @@ def _edges_in(XA, ha, XB, hb, margin):
     return mid @ XB[:3, :3].T + XB[:3, 3]
 
 
-def _bullet_turn(angle):
-    """The angle Bullet turns a body by in a step where its spin would turn it by ``angle``:
-    above pi/4 it clamps it, to 2 atan(angle / (pi/4) tan(pi/8)) (``_core/paths/step_path.hpp``)."""
-    quarter = 0.25 * math.pi
-    return angle if angle <= quarter else 2.0 * math.atan(angle / quarter * math.tan(0.5 * quarter))
+def _turned(w, dt):
+    """The share of a spin w (3,) that Bullet turns a body by in a step of dt: all of it up to
+    pi/4, above which Bullet clamps the angle a to 2 atan(a / (pi/4) tan(pi/8))
+    (``_core/paths/step_path.hpp``)."""
+    angle, quarter = float(np.linalg.norm(w)) * dt, 0.25 * math.pi
+    return 1.0 if angle <= quarter else 2.0 * math.atan(angle / quarter * math.tan(0.5 * quarter)) / angle
 
 
 def _still_row(X, row):
