@@ -24,6 +24,7 @@ from pybullet_utils import bullet_client
 from bullet_boxccd import BoxCCD, InvalidInputError, _core
 from bullet_boxccd.pybullet_ccd import BoxCCDWarning, layout
 from bullet_boxccd.pybullet_ccd.shapes import probe_boxes
+from bullet_boxccd.pybullet_ccd.world import restitution
 
 DT = 1 / 240
 CUBE_SMALL = os.path.join(pybullet_data.getDataPath(), "cube_small.urdf")
@@ -87,6 +88,40 @@ def test_maximal_bodies_are_found_and_swept_without_a_c_level_print(cid, name):
         through = sum(maximal_cube_through_wall(cid, True, MAXIMAL[name], ph) for ph in phases)
     assert through == 0 and plain >= 3, (through, plain)
     assert "failed" not in out.text, out.text
+
+
+def test_a_maximal_bodys_restitution_is_its_own_where_pybullet_reports_none(cid, tmp_path):
+    """pybullet's getDynamicsInfo leaves a maximal-coordinate body's restitution as its
+    previous answer had it (here that of a body of restitution 1 read just before). The
+    restitution BoxCCD's impacts read is the body's own: its URDF's until the user gives it
+    another through changeDynamics; a multibody's as pybullet reports it; and none for a
+    maximal body made before the import and not given one since (its impacts then get
+    none)."""
+    urdf = tmp_path / "bouncy.urdf"
+    urdf.write_text('<robot name="bouncy"><link name="base"><contact><restitution value="0.6"/></contact>'
+                    '<inertial><mass value="1"/><inertia ixx="0.0067" iyy="0.0067" izz="0.0067" ixy="0" ixz="0" '
+                    'iyz="0"/></inertial><collision><geometry><box size="0.2 0.2 0.2"/></geometry></collision>'
+                    '</link></robot>')
+    reset(cid)
+    trap = box(cid, [0.05] * 3, [0, 5, 0], mass=0.0)
+    p.changeDynamics(trap, -1, restitution=1.0, physicsClientId=cid)
+    cube = p.loadURDF(str(urdf), [0, 0, 0], useMaximalCoordinates=True, physicsClientId=cid)
+    twin = p.loadURDF(str(urdf), [0, 2, 0], physicsClientId=cid)
+    unseen = p._bullet_boxccd_originals["createMultiBody"](
+        1.0, p.createCollisionShape(p.GEOM_BOX, halfExtents=[0.1] * 3, physicsClientId=cid),
+        basePosition=[0, -2, 0], useMaximalCoordinates=True, physicsClientId=cid)
+    BoxCCD(cid).step()  # reads the world
+
+    def read(b):
+        p.getDynamicsInfo(trap, -1, physicsClientId=cid)
+        info = p.getDynamicsInfo(b, -1, physicsClientId=cid)
+        return info[5], restitution(cid, (b, -1), info)
+
+    assert read(cube) == pytest.approx((1.0, 0.6))  # pybullet's answer is the trap's
+    assert read(twin) == pytest.approx((0.6, 0.6))
+    p.changeDynamics(cube, -1, restitution=0.2, physicsClientId=cid)
+    assert read(cube) == pytest.approx((1.0, 0.2))
+    assert read(unseen) == (1.0, None)
 
 
 def test_a_maximal_body_is_read_in_a_client_of_its_own_after_the_user_disconnects_that_one(cid):

@@ -607,8 +607,9 @@ class BoxCCD:
         put back. A body has one restitution for all its contacts: one whose pairs want
         different values (a wall struck at once by boxes of different restitutions) keeps
         its own, and so do its partners in them. Not for a pair with a maximal-coordinate
-        body either, whose restitution getDynamicsInfo does not report (what it returns is
-        not the body's). Such impacts are resolved from the touch."""
+        body either: pybullet's solve treats it alike, but in crowds of such bodies the
+        raised solves left more boxes standing still against walls and deep in them (see
+        docs/design.md). Such impacts are resolved from the touch."""
         cid, lift = self.cid, 0.5 * self.world.journal.contact_erp
         keys, maximal = self.world.tables.keys, self.world.maximal
         pairs = [(keys[fa], keys[fb]) for fa, fb in impacts if not maximal(keys[fa][0]) and not maximal(keys[fb][0])] \

@@ -106,6 +106,10 @@ class Journal:
     friction_erp: float = FRICTION_ERP  # the same, of frictionERP
     max_velocity: dict = field(default_factory=dict)  # body -> maxJointVelocity set through changeDynamics
     damping: dict = field(default_factory=dict)  # body -> [linear, angular] damping set through changeDynamics
+    # (body, link) -> its restitution where the body is in maximal coordinates, of which
+    # getDynamicsInfo reports none: the latest given through changeDynamics, else the one it was
+    # made with (``shapes.Shadow``). Noted for every body: only a maximal one's is read.
+    restitution: dict = field(default_factory=dict)
     # Collision filters, as pybullet's collision filter plugin keeps them.
     pair_rules: dict = field(default_factory=dict)  # (body, link, body, link) in pybullet's key order -> enable
     group_mask: dict = field(default_factory=dict)  # (body, link) -> (group, mask) set by the user
@@ -370,6 +374,7 @@ def _forget(j, b):
     j.mjcf.pop(b, None)
     j.link_geometry.pop(b, None)
     j.damping.pop(b, None)
+    j.restitution = {k: v for k, v in j.restitution.items() if k[0] != b}
     j.joint_damping = {k: v for k, v in j.joint_damping.items() if k[0] != b}
     j.joint_from = {k: v for k, v in j.joint_from.items() if k[0] != b}
     j.impulses[:] = [x for x in j.impulses if _impulse_body(x) != b]  # pybullet dropped them with the body
@@ -570,6 +575,8 @@ def _change_dynamics(cid, a, result):
         j = journal(cid)
         j.joint_damping[(int(a["bodyUniqueId"]), int(a["linkIndex"]))] = float(a["jointDamping"])
         j.last_joint_damping = next(_serial)
+    if a.get("restitution") is not None and float(a["restitution"]) >= 0.0:  # (pybullet ignores one below 0)
+        journal(cid).restitution[int(a["bodyUniqueId"]), int(a["linkIndex"])] = float(a["restitution"])
     if a.get("maxJointVelocity") is not None:
         journal(cid).max_velocity[int(a["bodyUniqueId"])] = float(a["maxJointVelocity"])
     given = {k: float(a[name]) for k, name in enumerate(("linearDamping", "angularDamping"))

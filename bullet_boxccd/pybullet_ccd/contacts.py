@@ -79,7 +79,7 @@ from .events import CCDEvent
 from .layout import ANGULAR_VELOCITY, PATH_ROW, POSE, VELOCITY
 from .shapes import PLANE_HALF
 from .sweep import CREEP, ride_near
-from .world import FREE, LINK, MAXIMAL_TYPE
+from .world import FREE, LINK, MAXIMAL_TYPE, restitution
 
 __all__ = ["Contacts", "place", "bounce"]
 
@@ -603,8 +603,8 @@ class Contacts:
         the points at which an edge of one box is within ``depth_tolerance`` of the other
         approach on the motion Bullet integrates, along the pair's axis of least overlap, the
         pair's centres of mass part along it as a collision of two particles parts them: the
-        approach of the centres turned into a parting at the pair's combined restitution (as
-        pybullet reports it, at most 1), shared between the masses of its free bodies stopped
+        approach of the centres turned into a parting at the pair's combined restitution (at
+        most 1), shared between the masses of its free bodies stopped
         in this pass (what else it touches does not move), their spins kept, so that no
         kinetic energy is made (nothing is done where the centres do not approach)."""
         frames = (int(paths.frame[i]), int(paths.frame[j]))
@@ -630,7 +630,8 @@ class Contacts:
                    for f, d in zip(frames, dynamics)]
         if sum(inverse) == 0.0:
             return
-        change = (1.0 + min(1.0, dynamics[0][5] * dynamics[1][5])) * closing / sum(inverse)
+        e = [restitution(self.cid, paths.tables.keys[f], d) for f, d in zip(frames, dynamics)]
+        change = (1.0 + (0.0 if None in e else min(1.0, e[0] * e[1]))) * closing / sum(inverse)
         for f, (v, w), m, sign in zip(frames, twists, inverse, (-1.0, 1.0)):
             if m > 0.0:
                 paths.track[f].velocity = (v + sign * m * change * n, w)
@@ -825,9 +826,9 @@ def bounce(cid, tables, d, k, v, v_k, normal, elastic=True):
     """Frame d's velocity (v before) after a collision along ``normal`` (from the pusher)
     with an immovable body moving at v_k there, of frame k's restitution: pybullet's
     combined restitution on the approach, raised by half the contact ERP as the converged
-    engine's rebound is on average (``BoxCCD._simulate``; not with a maximal-coordinate
-    body, whose position correction adds no velocity), none unless ``elastic``; nothing if
-    they part already."""
+    engine's rebound is on average (``BoxCCD._simulate``; not with a maximal-coordinate body,
+    as there), none unless ``elastic`` or where a restitution is not known
+    (``world.restitution``); nothing if they part already."""
     v = np.array(v, float)
     if np.all(np.isfinite(normal)):
         approach = float(np.dot(v - v_k, normal))
@@ -835,7 +836,9 @@ def bounce(cid, tables, d, k, v, v_k, normal, elastic=True):
             e = 0.0
             if elastic:
                 a, b = (raw.getDynamicsInfo(*tables.keys[f], physicsClientId=cid) for f in (d, k))
-                e = a[5] * b[5] + (0.5 * journal(cid).contact_erp if MAXIMAL_TYPE not in (a[10], b[10]) else 0.0)
+                ea, eb = restitution(cid, tables.keys[d], a), restitution(cid, tables.keys[k], b)
+                lift = 0.5 * journal(cid).contact_erp if MAXIMAL_TYPE not in (a[10], b[10]) else 0.0
+                e = 0.0 if ea is None or eb is None else ea * eb + lift
             v = v - (1.0 + e) * approach * normal
     return v
 

@@ -114,7 +114,7 @@ class Shadow:
 
     def boxes(self, cid, journal, body):
         """{link: ``multibody_boxes``} of a maximal-coordinate body the journal saw being
-        made, or None."""
+        made, or None. Notes the restitution it was made with in the journal."""
         recipe = journal.maximal.get(body)
         if recipe is None:
             return None
@@ -140,7 +140,9 @@ class Shadow:
         try:
             shadow = ids[index]
             links = range(-1, raw.getNumJoints(shadow, physicsClientId=self.cid))
-            static = raw.getDynamicsInfo(shadow, -1, physicsClientId=self.cid)[0] == 0.0
+            info = raw.getDynamicsInfo(shadow, -1, physicsClientId=self.cid)
+            journal.restitution.setdefault((body, -1), info[5])  # (the one it was made with, unless given one since)
+            static = info[0] == 0.0
             return {lk: multibody_boxes(self.cid, shadow, lk, planes=static and lk == -1) for lk in links}
         finally:
             for b in ids:

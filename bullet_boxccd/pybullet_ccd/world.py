@@ -55,6 +55,15 @@ _MJCF_JOINT, _MJCF_LINK = re.compile(r"jointfix_\d+_-?\d+$"), re.compile(r"link\
 MAXIMAL_TYPE, _SOFT = 1, 3
 
 
+def restitution(cid, key, info):
+    """The restitution of frame ``key`` (body, link) whose getDynamicsInfo is ``info``, or None
+    where it is not known. For a maximal-coordinate body pybullet leaves that field as its
+    previous answer had it: the body's own is the journal's (the latest given through
+    changeDynamics, else the one it was made with), unknown for one made before this package
+    was imported and not given one since."""
+    return journal(cid).restitution.get(tuple(key)) if info[10] == MAXIMAL_TYPE else info[5]
+
+
 @dataclass
 class _Frame:
     link: int
