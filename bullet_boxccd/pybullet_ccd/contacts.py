@@ -604,9 +604,10 @@ class Contacts:
         approach on the motion Bullet integrates, along the pair's axis of least overlap, the
         pair's centres of mass part along it as a collision of two particles parts them: the
         approach of the centres turned into a parting at the pair's combined restitution (at
-        most 1), shared between the masses of its free bodies stopped
-        in this pass (what else it touches does not move), their spins kept, so that no
-        kinetic energy is made (nothing is done where the centres do not approach)."""
+        most 1; none where one is not known: ``world.restitution``), shared between the
+        masses of its free bodies stopped in this pass (what else it touches does not move),
+        their spins kept, so that no kinetic energy is made (nothing is done where the
+        centres do not approach)."""
         frames = (int(paths.frame[i]), int(paths.frame[j]))
         (va, wa), (vb, wb) = twists = [paths.twist(f) for f in frames]
         sa, sb = (_turned(w, paths.dt) for _, w in twists)
