@@ -220,8 +220,11 @@ class BoxCCD:
                                        self.world.journal.max_velocity)
             rigid_reach = self._sweep_reach.copy()
             rigid_reach[self._chains.boxes] = math.inf  # swept on their own paths (articulated)
+            # A fixed maximal-coordinate body: pybullet neither moves it by a velocity the user
+            # gives it nor lets its contacts see one.
+            at_rest = {f for f, (b, _) in enumerate(t.keys) if t.kind[f] == STATIC and self.world.maximal(b)}
             self._state = FrameState(self.cid, t, rigid_reach, self._chains.frames, self._not_finite,
-                                     self._clamp_candidates.update)
+                                     self._clamp_candidates.update, at_rest)
             self._others = Others(self.cid, self.world.journal, t.other_rigid, t.other_chains, t.other_fixed,
                                   t.other_stuck, self._warn, self.world.damping)
             self._watched = bool(self._state.moving) or bool(self._chains.watched)
@@ -284,7 +287,7 @@ class BoxCCD:
         self._state.name_not_finite([f for f in moved if f in free])
         # (a joint reset moves a body's links, not its fixed base)
         bases = [f for b, s in j.base_moved.items() if s > seen for f in t.frames_of.get(b, ()) if t.kind[f] == STATIC]
-        return bases, [f for f in given if t.kind[f] == STATIC], set(moved)
+        return bases, [f for f in given if t.kind[f] == STATIC and f not in self._state.at_rest], set(moved)
 
     def _name_joint_jumps(self, jumps, seen):
         """Name once each articulated body whose joints the user set between steps

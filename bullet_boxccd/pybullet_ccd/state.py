@@ -31,12 +31,17 @@ __all__ = ["FrameState"]
 _JUMP = 1e-12
 
 
-def _readers(cid, body, link):
+_AT_REST = ((0.0, 0.0, 0.0), (0.0, 0.0, 0.0))
+
+
+def _readers(cid, body, link, at_rest=False):
     """pybullet's (pose, velocity) reads of a frame's centre of mass as they come: ((x,
-    y, z), (qx, qy, qz, qw)) and ((vx, vy, vz), (wx, wy, wz)) (world)."""
+    y, z), (qx, qy, qz, qw)) and ((vx, vy, vz), (wx, wy, wz)) (world). ``at_rest``: a
+    static frame whose velocity pybullet neither moves it by nor gives its contacts (a
+    fixed rigid body: its solver treats it as at rest), read as none."""
     if link == -1:
         return (partial(raw.getBasePositionAndOrientation, body, physicsClientId=cid),
-                partial(raw.getBaseVelocity, body, physicsClientId=cid))
+                (lambda: _AT_REST) if at_rest else partial(raw.getBaseVelocity, body, physicsClientId=cid))
     return (lambda: raw.getLinkState(body, link, physicsClientId=cid)[:2],
             lambda: raw.getLinkState(body, link, computeLinkVelocity=1, physicsClientId=cid)[6:8])
 
@@ -45,7 +50,7 @@ class FrameState:
     """The (F, 13) state of every frame after the current step, and the kinematic frames."""
 
     def __init__(self, cid, tables, sweep_reach, articulated=frozenset(), not_finite=lambda frames: None,
-                 clamped=lambda frames: None):
+                 clamped=lambda frames: None, at_rest=frozenset()):
         self.cid, self.tables, self._not_finite, self._clamped = cid, tables, not_finite, clamped
         f = tables.filters
         # The core's sweeper holds the box tables and the rows (``rows`` is a numpy view of
@@ -54,7 +59,9 @@ class FrameState:
         self.sweeper = _core.Sweeper(tables.box_frame, tables.radius, tables.X_CS, tables.half, sweep_reach,
                                      tables.body, tables.self_collides, f.group, f.mask, f.mode)
         self.rows = self.sweeper.state
-        self._pose, self._twist = zip(*(_readers(cid, b, link) for b, link in tables.keys)) if tables.keys else ((), ())
+        self.at_rest = at_rest  # static frames whose velocity pybullet ignores (``_readers``)
+        readers = [_readers(cid, b, link, f in at_rest) for f, (b, link) in enumerate(tables.keys)]
+        self._pose, self._twist = zip(*readers) if readers else ((), ())
         static = np.flatnonzero(tables.kind == STATIC).tolist()
         self._static = set(static)
         self.fresh = set()  # moving or kinematic frames whose poses in ``rows`` are this step's (read or set)
