@@ -151,6 +151,23 @@ def test_a_maximal_body_is_read_in_a_client_of_its_own_after_the_user_disconnect
         p.disconnect(physicsClientId=theirs)
 
 
+def test_worlds_of_maximal_bodies_made_again_and_again_add_no_client(cid):
+    """An episode loop (the world reset and built again, a BoxCCD made for it) with a
+    maximal-coordinate box: the private client that reads such boxes is one for the whole
+    process, not one more per BoxCCD."""
+
+    def connected():
+        return sum(p.getConnectionInfo(physicsClientId=i)["isConnected"] for i in range(256))
+
+    counts = []
+    for _ in range(4):
+        reset(cid)
+        box(cid, [0.05] * 3, [0, 0, 0], maximal=True)
+        BoxCCD(cid).step()
+        counts.append(connected())
+    assert counts == [counts[0]] * 4, counts
+
+
 def test_probes_read_a_maximal_body_made_unseen_exactly(cid):
     """A maximal body made through pybullet's original function (as before bullet_boxccd
     was imported) is read by closest-point probes: its corners match the same box made
@@ -391,6 +408,33 @@ def test_a_fixed_maximal_paddle_given_a_velocity_pushes_as_one_only_teleported(c
     got = _teleported_paddle(cid, True, velocity=True, maximal=True)
     assert np.allclose(got, _teleported_paddle(cid, True, velocity=False, maximal=True), atol=1e-9)
     assert np.allclose(got, ref, atol=0.04 * 20.0), (got, ref)
+
+
+def test_fixed_maximal_bodies_given_a_velocity_stay_where_pybullet_keeps_them(cid):
+    """pybullet does not move a fixed maximal-coordinate body by a velocity the user gives
+    it: a sphere (no box) and a box so given stay put in plain pybullet, and under BoxCCD
+    while cubes striking a wall take the world back, each pose bit for bit plain pybullet's."""
+
+    def run(use):
+        reset(cid)
+        box(cid, [0.005, 1, 1], [0, 0, 0], mass=0.0)
+        sphere = p.createMultiBody(0, p.createCollisionShape(p.GEOM_SPHERE, radius=0.1, physicsClientId=cid),
+                                   basePosition=[0, 5, 0], useMaximalCoordinates=True, physicsClientId=cid)
+        block = box(cid, [0.1] * 3, [0, -5, 0], mass=0.0, maximal=True)
+        for b in (sphere, block):
+            p.resetBaseVelocity(b, [0, 0, 5.0], [0, 0, 0], physicsClientId=cid)
+        for i in range(3):
+            cube = box(cid, [0.05] * 3, [-0.3 - 0.7 * i, 0.3 * i - 0.3, 0.05])
+            p.resetBaseVelocity(cube, [60, 0, 0], [0, 0, 0], physicsClientId=cid)
+        ccd = BoxCCD(cid) if use else None
+        for _ in range(24):
+            ccd.step() if ccd else p.stepSimulation(physicsClientId=cid)
+        return [p.getBasePositionAndOrientation(b, physicsClientId=cid) for b in (sphere, block)], ccd
+
+    plain, _ = run(False)
+    mine, ccd = run(True)
+    assert ccd.stats.rewinds > 0
+    assert mine == plain
 
 
 def _elevator(cid, use, speed, fine=1, velocity=False, dt=DT):

@@ -222,11 +222,13 @@ class BoxCCD:
             rigid_reach[self._chains.boxes] = math.inf  # swept on their own paths (articulated)
             # A fixed maximal-coordinate body: pybullet neither moves it by a velocity the user
             # gives it nor lets its contacts see one.
-            at_rest = {f for f, (b, _) in enumerate(t.keys) if t.kind[f] == STATIC and self.world.maximal(b)}
+            maximal = self.world.maximal
+            at_rest = {f for f, (b, _) in enumerate(t.keys) if t.kind[f] == STATIC and maximal(b)}
             self._state = FrameState(self.cid, t, rigid_reach, self._chains.frames, self._not_finite,
                                      self._clamp_candidates.update, at_rest)
-            self._others = Others(self.cid, self.world.journal, t.other_rigid, t.other_chains, t.other_fixed,
-                                  t.other_stuck, self._warn, self.world.damping)
+            self._others = Others(self.cid, self.world.journal, t.other_rigid, t.other_chains,
+                                  [b for b in t.other_fixed if not maximal(b)], t.other_stuck, self._warn,
+                                  self.world.damping)
             self._watched = bool(self._state.moving) or bool(self._chains.watched)
             moving = len(self._state.moving) + len(self._chains.frames)
             self._partial_steps = self.max_partial_steps if self.max_partial_steps is not None else \

@@ -13,7 +13,8 @@ bit-exact: it would perturb a resting pile):
 1. ``Shadow``: the call that made the body (recorded by ``_hooks``, with the calls that
    made its collision shapes) is made again in a private DIRECT client as a multibody,
    which does answer; pybullet builds both kinds from the same description, with the
-   same centre-of-mass frames.
+   same centre-of-mass frames. One such client serves the whole process (``SHADOW``),
+   whatever number of worlds and BoxCCDs come and go.
 2. For a body made before this package was imported, closest-point probes:
 ``getClosestPoints`` between the body and a tiny sphere (a collision shape, not a
 body) placed far away in 64 directions gives the point of the body's surface nearest
@@ -40,7 +41,8 @@ from ..motion import pose_matrix
 from . import _hooks
 from ._hooks import raw
 
-__all__ = ["multibody_boxes", "plane_box", "probe_boxes", "fit_rounded_box", "Shadow", "NOT_A_BOX", "SPHERE", "THIN"]
+__all__ = ["multibody_boxes", "plane_box", "probe_boxes", "fit_rounded_box", "Shadow", "SHADOW", "NOT_A_BOX", "SPHERE",
+           "THIN"]
 
 NOT_A_BOX, SPHERE = "not a box", "sphere"
 THIN = "a box thinner than twice its collision margin"
@@ -105,7 +107,11 @@ def thickness(geometry, dimensions):
 
 class Shadow:
     """A private DIRECT client in which maximal-coordinate bodies are made again as
-    multibodies, to read their boxes with ``getCollisionShapeData``."""
+    multibodies, to read their boxes with ``getCollisionShapeData``. The collision shapes it
+    makes again are kept for the next body made of them, up to ``KEPT_SHAPES``: beyond, the
+    client is reset and they are made again as needed."""
+
+    KEPT_SHAPES = 1024
 
     def __init__(self):
         self.cid = -1
@@ -122,6 +128,9 @@ class Shadow:
             # (a client the user disconnected may be theirs again under the same id)
             self.cid = raw.connect(pybullet.DIRECT)
             self._journal, self._shapes = _hooks.journal(self.cid), {}
+        elif len(self._shapes) > self.KEPT_SHAPES:
+            raw.resetSimulation(physicsClientId=self.cid)
+            self._shapes = {}
         if journal.search_paths:  # pybullet keeps one additional path: the latest
             raw.setAdditionalSearchPath(journal.search_paths[-1], physicsClientId=self.cid)
         name, named, index = recipe
@@ -304,3 +313,6 @@ def _box_generators(offsets, tol):
         if np.min(np.linalg.norm(offsets[:, None, :] - expected[None], axis=2), axis=1).max() <= tol:
             return g
     return None
+
+
+SHADOW = Shadow()  # the process's (its client is connected when a body first needs it)

@@ -42,7 +42,7 @@ from . import mjcf
 from ._hooks import damping, journal, new_serial, raw
 from .events import BoxCCDWarning
 from .filters import Filters, default_group_mask
-from .shapes import SPHERE, Shadow, multibody_boxes, plane_box, probe_boxes
+from .shapes import SHADOW, SPHERE, multibody_boxes, plane_box, probe_boxes
 
 __all__ = ["STATIC", "FREE", "LINK", "World", "Tables"]
 
@@ -138,7 +138,6 @@ class World:
         self.registered = {}  # (body, link) -> (serial, [(half, X_CS)]) declared with BoxCCD.register_box
         self._warn = warn
         self._bodies = {}  # body -> _Body
-        self._shadow = Shadow()
         self._probe_shape = -1
         self._seen = 0  # journal serial consumed
         self.count = -1  # body count at the last sync
@@ -252,7 +251,7 @@ class World:
         shadow = None
         if rec.maximal and from_file is None and self.journal.link_geometry.get(b, {}).get(-1) != \
                 pybullet.GEOM_HEIGHTFIELD:
-            shadow = self._shadow.boxes(cid, self.journal, b)
+            shadow = SHADOW.boxes(cid, self.journal, b)
             if shadow is not None:  # pybullet poses no link of a maximal-coordinate body (getNumJoints is 0)
                 rec.unposed = any(lk >= 0 for lk in shadow)
                 left = [(lk, len(bx)) for lk, (bx, _) in sorted(shadow.items()) if lk >= 0 and bx]
