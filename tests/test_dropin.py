@@ -168,6 +168,26 @@ def test_worlds_of_maximal_bodies_made_again_and_again_add_no_client(cid):
     assert counts == [counts[0]] * 4, counts
 
 
+def test_a_client_given_a_closed_clients_id_has_its_own_maximal_boxes_read(cid):
+    """Clients connected and closed in turn are given the same id, and their first shapes the
+    same index: a maximal-coordinate box made in the second is read at its own size, not at
+    the size of the first's box made from the shape of that index."""
+    sizes = []
+    for half in (0.05, 0.2):
+        other = p.connect(p.DIRECT)
+        try:
+            col = p.createCollisionShape(p.GEOM_BOX, halfExtents=[half] * 3, physicsClientId=other)
+            p.createMultiBody(1.0, col, basePosition=[0, 0, 0], useMaximalCoordinates=True, physicsClientId=other)
+            ccd = BoxCCD(other)
+            ccd.step()
+            sizes.append((other, col, ccd.world.tables.half.tolist()))
+        finally:
+            p.disconnect(physicsClientId=other)
+    (a, col_a, half_a), (b, col_b, half_b) = sizes
+    assert (a, col_a) == (b, col_b)  # the case: the same client id and shape index
+    assert np.allclose(half_a, 0.05) and np.allclose(half_b, 0.2), sizes
+
+
 def test_probes_read_a_maximal_body_made_unseen_exactly(cid):
     """A maximal body made through pybullet's original function (as before bullet_boxccd
     was imported) is read by closest-point probes: its corners match the same box made

@@ -91,6 +91,8 @@ class Journal:
     a BoxCCD compares them with the serial it last consumed.
     """
 
+    # Serial of this journal's making: tells apart clients that are given the same id in turn.
+    made: int = field(default_factory=new_serial)
     reset: int = 0  # resetSimulation (everything below is cleared with it)
     closed: bool = False  # the client was disconnected (a later one under its id has a journal of its own)
     bodies: dict = field(default_factory=dict)  # body -> serial of its creation, removal, mass or scale change

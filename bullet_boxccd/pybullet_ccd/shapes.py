@@ -116,7 +116,7 @@ class Shadow:
     def __init__(self):
         self.cid = -1
         self._journal = None  # the private client's: closed once the user disconnects it by its id
-        self._shapes = {}  # (client, journal reset serials, user's shape index) -> shadow index
+        self._shapes = {}  # (user's journal's serials, private journal's reset, user's shape index) -> shadow index
 
     def boxes(self, cid, journal, body):
         """{link: ``multibody_boxes``} of a maximal-coordinate body the journal saw being
@@ -169,7 +169,7 @@ class Shadow:
     def _shape(self, cid, journal, index):
         if index is None or index < 0:
             return -1
-        key = (cid, journal.reset, self._journal.reset, index)
+        key = (journal.made, journal.reset, self._journal.reset, index)
         if key not in self._shapes:
             name, named = journal.shapes[index]  # KeyError: made unseen
             self._shapes[key] = getattr(raw, name)(**named, physicsClientId=self.cid)
