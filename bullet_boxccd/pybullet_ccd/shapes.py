@@ -32,6 +32,7 @@ sphere, which is left to pybullet without a warning).
 from __future__ import annotations
 
 import math
+import threading
 from itertools import combinations, product
 
 import numpy as np
@@ -117,10 +118,16 @@ class Shadow:
         self.cid = -1
         self._journal = None  # the private client's: closed once the user disconnects it by its id
         self._shapes = {}  # (user's journal's serials, private journal's reset, user's shape index) -> shadow index
+        self._lock = threading.Lock()
 
     def boxes(self, cid, journal, body):
         """{link: ``multibody_boxes``} of a maximal-coordinate body the journal saw being
-        made, or None. Notes the restitution it was made with in the journal."""
+        made, or None. Notes the restitution it was made with in the journal. (One read at
+        a time: worlds stepped in several threads share the client.)"""
+        with self._lock:
+            return self._boxes(cid, journal, body)
+
+    def _boxes(self, cid, journal, body):
         recipe = journal.maximal.get(body)
         if recipe is None:
             return None
