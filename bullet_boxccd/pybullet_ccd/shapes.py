@@ -120,14 +120,14 @@ class Shadow:
         self._shapes = {}  # (user's journal's serials, private journal's reset, user's shape index) -> shadow index
         self._lock = threading.Lock()
 
-    def boxes(self, cid, journal, body):
+    def boxes(self, journal, body):
         """{link: ``multibody_boxes``} of a maximal-coordinate body the journal saw being
         made, or None. Notes the restitution it was made with in the journal. (One read at
         a time: worlds stepped in several threads share the client.)"""
         with self._lock:
-            return self._boxes(cid, journal, body)
+            return self._boxes(journal, body)
 
-    def _boxes(self, cid, journal, body):
+    def _boxes(self, journal, body):
         recipe = journal.maximal.get(body)
         if recipe is None:
             return None
@@ -144,7 +144,7 @@ class Shadow:
         named = dict(named, useMaximalCoordinates=False)
         try:
             if name == "createMultiBody":
-                named = self._shapes_mapped(cid, journal, named)
+                named = self._shapes_mapped(journal, named)
                 named.pop("batchPositions", None)
                 ids = [raw.createMultiBody(**named, physicsClientId=self.cid)]
                 index = 0
@@ -164,16 +164,16 @@ class Shadow:
             for b in ids:
                 raw.removeBody(b, physicsClientId=self.cid)
 
-    def _shapes_mapped(self, cid, journal, named):
+    def _shapes_mapped(self, journal, named):
         named = dict(named, baseVisualShapeIndex=-1)
-        named["baseCollisionShapeIndex"] = self._shape(cid, journal, named.get("baseCollisionShapeIndex", -1))
+        named["baseCollisionShapeIndex"] = self._shape(journal, named.get("baseCollisionShapeIndex", -1))
         links = named.get("linkCollisionShapeIndices")
         if links:
-            named["linkCollisionShapeIndices"] = [self._shape(cid, journal, i) for i in links]
+            named["linkCollisionShapeIndices"] = [self._shape(journal, i) for i in links]
             named["linkVisualShapeIndices"] = [-1] * len(links)
         return named
 
-    def _shape(self, cid, journal, index):
+    def _shape(self, journal, index):
         if index is None or index < 0:
             return -1
         key = (journal.made, journal.reset, self._journal.reset, index)

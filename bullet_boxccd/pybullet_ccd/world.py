@@ -251,7 +251,7 @@ class World:
         shadow = None
         if rec.maximal and from_file is None and self.journal.link_geometry.get(b, {}).get(-1) != \
                 pybullet.GEOM_HEIGHTFIELD:
-            shadow = SHADOW.boxes(cid, self.journal, b)
+            shadow = SHADOW.boxes(self.journal, b)
             if shadow is not None:  # pybullet poses no link of a maximal-coordinate body (getNumJoints is 0)
                 rec.unposed = any(lk >= 0 for lk in shadow)
                 left = [(lk, len(bx)) for lk, (bx, _) in sorted(shadow.items()) if lk >= 0 and bx]
