@@ -96,7 +96,7 @@ def test_a_maximal_bodys_restitution_is_its_own_where_pybullet_reports_none(cid,
     restitution BoxCCD's impacts read is the body's own: its URDF's until the user gives it
     another through changeDynamics; a multibody's as pybullet reports it; and none for a
     maximal body made before the import and not given one since (its impacts then get
-    none)."""
+    none), which the warning naming bodies made unseen says."""
     urdf = tmp_path / "bouncy.urdf"
     urdf.write_text('<robot name="bouncy"><link name="base"><contact><restitution value="0.6"/></contact>'
                     '<inertial><mass value="1"/><inertia ixx="0.0067" iyy="0.0067" izz="0.0067" ixy="0" ixz="0" '
@@ -110,7 +110,11 @@ def test_a_maximal_bodys_restitution_is_its_own_where_pybullet_reports_none(cid,
     unseen = p._bullet_boxccd_originals["createMultiBody"](
         1.0, p.createCollisionShape(p.GEOM_BOX, halfExtents=[0.1] * 3, physicsClientId=cid),
         basePosition=[0, -2, 0], useMaximalCoordinates=True, physicsClientId=cid)
-    BoxCCD(cid).step()  # reads the world
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", BoxCCDWarning)
+        BoxCCD(cid).step()  # reads the world
+    said = " ".join(str(w.message) for w in caught)
+    assert f"the restitution of [{unseen}]" in said and f"restitution of [{cube}" not in said, said
 
     def read(b):
         p.getDynamicsInfo(trap, -1, physicsClientId=cid)

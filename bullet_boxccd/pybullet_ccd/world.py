@@ -222,11 +222,16 @@ class World:
     def _warn_unseen(self, ids):
         unseen = [b for b in ids if b not in self.journal.created]
         if unseen:
+            # (pybullet reports no restitution of a maximal-coordinate body: ``restitution``)
+            maximal = [b for b in unseen if raw.getDynamicsInfo(b, -1, physicsClientId=self.cid)[10] == MAXIMAL_TYPE
+                       and (b, -1) not in self.journal.restitution]
             self._warn(("unseen",) + tuple(unseen),
                        f"bodies {unseen} were created before bullet_boxccd was imported (or through a pybullet "
                        "function it does not see): collision filters set on them with pybullet's own calls, "
                        "their damping and velocity clamp set by changeDynamics (pybullet's defaults are "
-                       "assumed), their removal and re-creation under the same id, and kinematic moves cannot "
+                       "assumed), " + (f"the restitution of {maximal} (in maximal coordinates: none is assumed "
+                                      "where BoxCCD parts them), " if maximal else "") +
+                       "their removal and re-creation under the same id, and kinematic moves cannot "
                        "be known. Import bullet_boxccd before building the world.")
         for b, why in self.journal.filters_unknown.items():
             if b in self._bodies:
