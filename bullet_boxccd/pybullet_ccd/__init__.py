@@ -289,7 +289,7 @@ class BoxCCD:
         self._state.name_not_finite([f for f in moved if f in free])
         # (a joint reset moves a body's links, not its fixed base)
         bases = [f for b, s in j.base_moved.items() if s > seen for f in t.frames_of.get(b, ()) if t.kind[f] == STATIC]
-        return bases, [f for f in given if t.kind[f] == STATIC and f not in self._state.at_rest], set(moved)
+        return bases, [f for f in given if t.kind[f] == STATIC], set(moved)
 
     def _name_joint_jumps(self, jumps, seen):
         """Name once each articulated body whose joints the user set between steps

@@ -59,7 +59,7 @@ class FrameState:
         self.sweeper = _core.Sweeper(tables.box_frame, tables.radius, tables.X_CS, tables.half, sweep_reach,
                                      tables.body, tables.self_collides, f.group, f.mask, f.mode)
         self.rows = self.sweeper.state
-        self.at_rest = at_rest  # static frames whose velocity pybullet ignores (``_readers``)
+        self._at_rest = at_rest  # static frames whose velocity pybullet ignores (``_readers``)
         readers = [_readers(cid, b, link, f in at_rest) for f, (b, link) in enumerate(tables.keys)]
         self._pose, self._twist = zip(*readers) if readers else ((), ())
         static = np.flatnonzero(tables.kind == STATIC).tolist()
@@ -148,8 +148,10 @@ class FrameState:
 
     def begin_kinematic(self, moved_static, with_velocity):
         """Before the step: note the static frames the user moved since the last step and
-        those with a velocity (their poses before the step are the ones known now)."""
+        those given a velocity (but those whose velocity pybullet ignores: ``_readers``; their
+        poses before the step are the ones known now)."""
         self.fresh = set()
+        with_velocity = [f for f in with_velocity if f not in self._at_rest]
         if not (moved_static or with_velocity or self.with_velocity):
             self.pose0, self.kinematic = {}, []
             return

@@ -61,7 +61,7 @@ def restitution(cid, key, info):
     previous answer had it: the body's own is the journal's (the latest given through
     changeDynamics, else the one it was made with), unknown for one made before this package
     was imported and not given one since."""
-    return journal(cid).restitution.get(tuple(key)) if info[10] == MAXIMAL_TYPE else info[5]
+    return journal(cid).restitution.get(key) if info[10] == MAXIMAL_TYPE else info[5]
 
 
 @dataclass
