@@ -436,8 +436,10 @@ def test_a_fixed_maximal_paddle_given_a_velocity_pushes_as_one_only_teleported(c
 
 def test_fixed_maximal_bodies_given_a_velocity_stay_where_pybullet_keeps_them(cid):
     """pybullet does not move a fixed maximal-coordinate body by a velocity the user gives
-    it: a sphere (no box) and a box so given stay put in plain pybullet, and under BoxCCD
-    while cubes striking a wall take the world back, each pose bit for bit plain pybullet's."""
+    it, nor one made fixed and given a mass since (pybullet integrates a rigid body only if
+    it was made with a mass): a sphere (no box) and boxes so given stay put in plain
+    pybullet, and under BoxCCD while cubes striking a wall take the world back, each pose
+    bit for bit plain pybullet's."""
 
     def run(use):
         reset(cid)
@@ -445,7 +447,9 @@ def test_fixed_maximal_bodies_given_a_velocity_stay_where_pybullet_keeps_them(ci
         sphere = p.createMultiBody(0, p.createCollisionShape(p.GEOM_SPHERE, radius=0.1, physicsClientId=cid),
                                    basePosition=[0, 5, 0], useMaximalCoordinates=True, physicsClientId=cid)
         block = box(cid, [0.1] * 3, [0, -5, 0], mass=0.0, maximal=True)
-        for b in (sphere, block):
+        massed = box(cid, [0.1] * 3, [0, -8, 0], mass=0.0, maximal=True)
+        p.changeDynamics(massed, -1, mass=1.0, physicsClientId=cid)
+        for b in (sphere, block, massed):
             p.resetBaseVelocity(b, [0, 0, 5.0], [0, 0, 0], physicsClientId=cid)
         for i in range(3):
             cube = box(cid, [0.05] * 3, [-0.3 - 0.7 * i, 0.3 * i - 0.3, 0.05])
@@ -453,7 +457,7 @@ def test_fixed_maximal_bodies_given_a_velocity_stay_where_pybullet_keeps_them(ci
         ccd = BoxCCD(cid) if use else None
         for _ in range(24):
             ccd.step() if ccd else p.stepSimulation(physicsClientId=cid)
-        return [p.getBasePositionAndOrientation(b, physicsClientId=cid) for b in (sphere, block)], ccd
+        return [p.getBasePositionAndOrientation(b, physicsClientId=cid) for b in (sphere, block, massed)], ccd
 
     plain, _ = run(False)
     mine, ccd = run(True)

@@ -33,6 +33,7 @@ from __future__ import annotations
 
 import math
 import threading
+from dataclasses import dataclass
 from itertools import combinations, product
 
 import numpy as np
@@ -106,6 +107,16 @@ def thickness(geometry, dimensions):
     return None
 
 
+@dataclass
+class Remade:
+    """A maximal-coordinate body as it was made: {link: ``multibody_boxes``}, and its base's
+    mass and restitution then."""
+
+    boxes: dict
+    mass: float
+    restitution: float
+
+
 class Shadow:
     """A private DIRECT client in which maximal-coordinate bodies are made again as
     multibodies, to read their boxes with ``getCollisionShapeData``. The collision shapes it
@@ -120,14 +131,13 @@ class Shadow:
         self._shapes = {}  # (user's journal's serials, private journal's reset, user's shape index) -> shadow index
         self._lock = threading.Lock()
 
-    def boxes(self, journal, body):
-        """{link: ``multibody_boxes``} of a maximal-coordinate body the journal saw being
-        made, or None. Notes the restitution it was made with in the journal. (One read at
-        a time: worlds stepped in several threads share the client.)"""
+    def remake(self, journal, body):
+        """A maximal-coordinate body the journal saw being made, as it was made (``Remade``),
+        or None. (One read at a time: worlds stepped in several threads share the client.)"""
         with self._lock:
-            return self._boxes(journal, body)
+            return self._remake(journal, body)
 
-    def _boxes(self, journal, body):
+    def _remake(self, journal, body):
         recipe = journal.maximal.get(body)
         if recipe is None:
             return None
@@ -156,10 +166,9 @@ class Shadow:
         try:
             shadow = ids[index]
             links = range(-1, raw.getNumJoints(shadow, physicsClientId=self.cid))
-            info = raw.getDynamicsInfo(shadow, -1, physicsClientId=self.cid)
-            journal.restitution.setdefault((body, -1), info[5])  # (the one it was made with, unless given one since)
-            static = info[0] == 0.0
-            return {lk: multibody_boxes(self.cid, shadow, lk, planes=static and lk == -1) for lk in links}
+            mass, restitution = (raw.getDynamicsInfo(shadow, -1, physicsClientId=self.cid)[i] for i in (0, 5))
+            boxes = {lk: multibody_boxes(self.cid, shadow, lk, planes=mass == 0.0 and lk == -1) for lk in links}
+            return Remade(boxes, mass, restitution)
         finally:
             for b in ids:
                 raw.removeBody(b, physicsClientId=self.cid)

@@ -249,15 +249,19 @@ class World:
             return rec
         n_joints = raw.getNumJoints(b, physicsClientId=cid)
         fixed_base = info[0] == 0.0
-        rec.moves = "chain" if n_joints else "" if fixed_base else "rigid"
         names = rec.names = self._link_names(b, n_joints)
-        rec.fixed_base = fixed_base
         from_file = self._mjcf_links(b, rec, names, n_joints)
         shadow = None
         if rec.maximal and from_file is None and self.journal.link_geometry.get(b, {}).get(-1) != \
                 pybullet.GEOM_HEIGHTFIELD:
-            shadow = SHADOW.boxes(self.journal, b)
-            if shadow is not None:  # pybullet poses no link of a maximal-coordinate body (getNumJoints is 0)
+            remade = SHADOW.remake(self.journal, b)
+            if remade is not None:
+                shadow = remade.boxes
+                self.journal.restitution.setdefault((b, -1), remade.restitution)  # (unless given one since)
+                # pybullet integrates a rigid body only if it was made with a mass, whatever
+                # mass it is given since.
+                fixed_base = fixed_base or remade.mass == 0.0
+                # pybullet poses no link of a maximal-coordinate body (getNumJoints is 0)
                 rec.unposed = any(lk >= 0 for lk in shadow)
                 left = [(lk, len(bx)) for lk, (bx, _) in sorted(shadow.items()) if lk >= 0 and bx]
                 if left:
@@ -265,6 +269,8 @@ class World:
                     rec.untracked_why = ("pybullet reports neither the pose nor the velocity of the links of a "
                                          "maximal-coordinate body (getNumJoints is 0, getLinkState gives nothing); "
                                          "make it with useMaximalCoordinates=False to have them swept")
+        rec.fixed_base = fixed_base
+        rec.moves = "chain" if n_joints else "" if fixed_base else "rigid"
         for link in range(-1, n_joints):
             boxes, why = self._frame_boxes(b, link, rec, shadow, from_file, static=link == -1 and fixed_base)
             if why is not None:
