@@ -338,6 +338,50 @@ def test_a_domino_cascade_within_a_step_gains_no_energy(cid):
         assert energy <= 1.0 and fastest <= 2.0 * max(b, r) + 2.0, (s, fastest, energy, b, r)
 
 
+def pressed_row(cid, use, speed, bodies, gravity, restitution, fine=1):
+    """The first of ``bodies`` [(mass, half extents, x, z)] at ``speed`` m/s along x strikes
+    the others, standing in a row ahead of it (friction 0.3, no damping; with ``gravity``,
+    on a box floor). Returns (momentum along x, kinetic energy), each
+    over the launch's, after 12 steps."""
+    reset(cid, -9.81 if gravity else 0.0)
+    if gravity:
+        floor = p.createCollisionShape(p.GEOM_BOX, halfExtents=[3, 1, 0.25], physicsClientId=cid)
+        p.createMultiBody(0, floor, basePosition=[0, 0, -0.25], physicsClientId=cid)
+    made = []
+    for mass, half, x, z in bodies:
+        shape = p.createCollisionShape(p.GEOM_BOX, halfExtents=half, physicsClientId=cid)
+        made.append(p.createMultiBody(mass, shape, basePosition=[x, 0, z], physicsClientId=cid))
+        p.changeDynamics(made[-1], -1, restitution=restitution, lateralFriction=0.3, linearDamping=0, angularDamping=0,
+                         maxJointVelocity=1000, physicsClientId=cid)
+    p.resetBaseVelocity(made[0], [speed, 0, 0], physicsClientId=cid)
+    _, step = stepper(cid, use, fine)
+    for _ in range(12):
+        step()
+    m = np.array([mass for mass, *_ in bodies])
+    v = np.array([p.getBaseVelocity(b, physicsClientId=cid)[0] for b in made])
+    return m @ v[:, 0] / (m[0] * speed), (m @ (v * v).sum(axis=1)) / (m[0] * speed * speed)
+
+
+SANDWICH = [(10.0, [0.1] * 3, -0.6, 1.0), (0.01, [0.001, 0.2, 0.2], 0.0, 1.0), (10.0, [0.1] * 3, 0.1015, 1.0)]
+CUBES_IN_A_ROW = [(1.93, [0.05] * 3, -0.722, 0.0538)] + [(1.0, [0.05] * 3, 0.102 * i, 0.05) for i in range(3)]
+
+
+@pytest.mark.parametrize("bodies, gravity, restitution", [(SANDWICH, False, 0.0), (CUBES_IN_A_ROW, True, 0.5)],
+                         ids=["sandwich", "row"])
+def test_a_body_struck_on_through_a_row_keeps_the_momentum_of_the_converged_engine(cid, bodies, gravity, restitution):
+    """The bodies of a partial step's impact keep its impulse whole where the world goes
+    back within that step, and so do the bodies pybullet's solver pushed on through them
+    (the cube pressing on a struck 2 mm plate, 0.5 mm from it, no restitution; the row of
+    cubes 2 mm apart behind a struck cube, restitution 0.5): an impulse kept in share for one of a pair and whole for the
+    other made momentum no force gave (the sandwich left with 1.75 times it, the row with
+    1.1). Momentum and kinetic energy within 0.02 and 0.05 of pybullet at a 64 times
+    finer step."""
+    for speed in (25.8, 50.0):
+        mine = pressed_row(cid, True, speed, bodies, gravity, restitution)
+        ref = pressed_row(cid, False, speed, bodies, gravity, restitution, fine=64)
+        assert abs(mine[0] - ref[0]) <= 0.02 and abs(mine[1] - ref[1]) <= 0.05, (speed, mine, ref)
+
+
 # ---------------------------------------------------------- do no harm
 def ground_scene(cid, kind, seed, ground, mode):
     """A puck sliding at 10 m/s or a die tumbling at 5-15 m/s and 20-60 rad/s on a box

@@ -121,14 +121,55 @@ class _Track:
     velocity: tuple = None  # (v, w) it leaves the step with, where the plugin changed them
 
 
+class _Solve:
+    """Which free frames pybullet's solver pushed on each other in the (partial) step just
+    taken: its contacts that bore a force, between free frames (read once asked for).
+
+    The solve's impulses all act as the step begins, an impulse between two bodies on both
+    alike. Where the plugin gives a body its velocity after the step whole (struck by the
+    impact the step began at, or stopped against another free body), every body it pushed
+    on in the solve, and every body those pushed on, keeps its whole too: a body whose
+    impulse from a struck one is kept whole while its own is kept in share (a struck cube
+    at the head of a row, the cube behind it pressing on) leaves the pair with momentum
+    that no force gave it."""
+
+    def __init__(self, cid, tables):
+        self.cid, self.tables, self._partners = cid, tables, {}
+
+    def partners(self, f) -> set:
+        """The other free frames a contact of frame f bore a force with."""
+        out = self._partners.get(f)
+        if out is None:
+            t, out = self.tables, set()
+            if t.kind[f] == FREE:
+                b, link = t.keys[f]
+                for c in raw.getContactPoints(bodyA=b, linkIndexA=link, physicsClientId=self.cid):
+                    if c[9] > 0.0:
+                        out.update(g for g in t.frames_of.get(c[2], ()) if t.keys[g][1] == c[4] and g != f
+                                   and t.kind[g] == FREE)
+            self._partners[f] = out
+        return out
+
+    def through(self, frames) -> set:
+        """``frames`` and every free frame reached from them over ``partners``."""
+        out, todo = set(frames), list(frames)
+        while todo:
+            for g in self.partners(todo.pop()):
+                if g not in out:
+                    out.add(g)
+                    todo.append(g)
+        return out
+
+
 class _Paths:
     """The frames of a sweep on their effective paths (``_Track``). Rows are the sweep's
     path rows, rewritten as paths change; all are over the whole step (tau in [0, 1]),
     valid from the frame's last change on."""
 
-    def __init__(self, sw, tables, state, dt, kinematic, struck, gravity):
+    def __init__(self, sw, tables, state, dt, kinematic, struck, gravity, solve):
         self.tables, self.state, self.dt = tables, state, dt
-        self.struck, self.gravity = struck, gravity
+        self.struck, self.gravity, self.solve = struck, gravity, solve
+        self._kept = None  # the frames kept whole with the struck ones, once asked for
         self.rows = sw.rows.copy()
         self.box = sw.boxes
         self.frame = tables.box_frame[sw.boxes]
@@ -210,13 +251,16 @@ class _Paths:
     def stop(self, f, tau, whole=False):
         """Frame f stands still from tau on, with the velocity it had at tau, as the world
         going back there would give it (``Contacts._world_to``; ``whole``: its velocity after
-        the step, less the rest's gravity, as for a struck body): kept from after the step
-        whatever its contact, a stopped body would gain a step's gravity every step it stands."""
+        the step, less the rest's gravity, as for a struck body; so too for one the solve
+        pushed on another free body with: ``_Solve``): kept from after the step whatever
+        its contact, a stopped body would gain a step's gravity every step it stands."""
         tr = self.track[f]
         tr.frozen = self.com(f, tau)
         if tr.velocity is None:
             st = self.state
-            mode = 2 if st.twist0 is None or whole or f in self.struck else 1
+            if self._kept is None:
+                self._kept = self.solve.through(self.struck)
+            mode = 2 if st.twist0 is None or whole or f in self._kept or self.solve.partners(f) else 1
             v, w, _ = st.sweeper.velocities_at(self.dt, tau, [f], [mode], st.twist0, self.gravity, self.tables.damping)
             tr.velocity = (v[0], w[0])
         for r in tr.rows:
@@ -280,7 +324,9 @@ class Contacts:
         self.met = set()
         self._presses = {} if presses is None else presses
         pushed = self._jumps(jw, tables, state, dt, kinematic, user_moved, events) if jw is not None else {}
-        paths = _Paths(sw, tables, state, dt, kinematic, struck, gravity) if sw is not None and sw.hits else None
+        solve = _Solve(self.cid, tables)
+        paths = _Paths(sw, tables, state, dt, kinematic, struck, gravity, solve) \
+            if sw is not None and sw.hits else None
         for d, (k, start, v) in pushed.items():  # then it rides its kinematic body through the step
             row_k = self._frame_row(tables, state, dt, k)
             if paths is not None and d in paths.track:
@@ -292,7 +338,7 @@ class Contacts:
         if paths is not None:
             tau = min(tau, self._time_order(paths, sw, user_moved, events, back, tau))
         if back and tau < 1.0:
-            self._world_to(paths, tables, state, dt, gravity, tau, set(struck) | self._cut)
+            self._world_to(paths, tables, state, dt, gravity, tau, set(struck) | self._cut, solve)
         elif paths is not None:
             self._apply(paths, tables, state)
         return events, tau
@@ -308,9 +354,9 @@ class Contacts:
     def world_to_start(self, tables, state, dt):
         """Every free body back where the (partial) step of dt began, with the velocities it
         began with (``state.twist0``)."""
-        self._world_to(None, tables, state, dt, np.zeros(3), 0.0, ())
+        self._world_to(None, tables, state, dt, np.zeros(3), 0.0, (), _Solve(self.cid, tables))
 
-    def _world_to(self, paths, tables, state, dt, gravity, tau, struck):
+    def _world_to(self, paths, tables, state, dt, gravity, tau, struck, solve):
         """Every free body where its path has it at tau, and every kinematic frame with a
         velocity where Bullet's path has it; carried bodies where their ride ends (the rest
         of the step would carry them no further), stopped ones where they stopped.
@@ -320,10 +366,12 @@ class Contacts:
         before and after the step, in proportion; but one ``struck`` at the start of the
         step took its impact's impulse whole there, and leaves with its velocity after the
         step less the rest of the step's gravity (as does any whose velocity before the
-        step is not known)."""
+        step is not known), and so does every free body the solve pushed on one of those or
+        on a body stopped against another free body (``_Solve``)."""
         track = paths.track if paths is not None else {}
         carried = [f for f, tr in track.items() if tr.status == _CARRIED]
         stopped = [f for f, tr in track.items() if tr.status == _STOPPED and tr.stop_time <= tau]
+        struck = solve.through(set(struck).union(f for f in stopped if solve.partners(f)))
         # Every other frame is on Bullet's path (a fixed base the user gave a velocity too).
         off = set(carried + stopped)
         free = [f for f in tables.free_frames if f not in off]
