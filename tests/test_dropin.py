@@ -380,6 +380,86 @@ def test_kinematic_and_mocap_paddles_leave_no_cube_behind_and_never_stick(cid, m
         assert among < 0.005, (mode, seed, among)  # a pushed cube pushes the next: none inside another
 
 
+def _obstacle_placed(cid, use, moves):
+    """A cube_small resting on a box floor and a mass-0 box (0.2 x 0.6 x 0.4 m) 2 m from it
+    that the user moves to each of ``moves`` (x positions, one before each step, None:
+    not moved), whose straight way from one to the next can cross the cube. Returns the
+    cube's pose and velocity after the moves and 4 steps more."""
+    reset(cid, -10.0)
+    box(cid, [5, 5, 0.05], [0, 0, -0.05], mass=0.0)
+    obstacle = box(cid, [0.1, 0.3, 0.2], [-2, 0, 0.2], mass=0.0)
+    cube = p.loadURDF(CUBE_SMALL, [0, 0, 0.025], physicsClientId=cid)
+    for _ in range(20):
+        p.stepSimulation(physicsClientId=cid)
+    ccd = BoxCCD(cid) if use else None
+    for x in list(moves) + [None] * 4:
+        if x is not None:
+            p.resetBasePositionAndOrientation(obstacle, [x, 0, 0.2], [0, 0, 0, 1], physicsClientId=cid)
+        ccd.step() if ccd else p.stepSimulation(physicsClientId=cid)
+    return p.getBasePositionAndOrientation(cube, physicsClientId=cid) + p.getBaseVelocity(cube, physicsClientId=cid)
+
+
+def test_a_fixed_body_placed_elsewhere_once_moves_nothing_on_its_way(cid):
+    """An episode's reset puts an obstacle somewhere else: pybullet places it there, and
+    what lay on its straight way stays where it lay. Only a body the user moves at every
+    step is driven (its move swept, what it meets pushed ahead of it): placed across the
+    cube once, or at every other step, the obstacle leaves it as plain pybullet does, bit
+    for bit (it was thrown at 4 m a step, 960 m/s); moved at two steps in a row, the
+    second move pushes it."""
+    for moves in ([None, 2.0], [None, 2.0, None, -2.0, None, 2.0]):
+        assert _obstacle_placed(cid, True, moves) == _obstacle_placed(cid, False, moves)
+    pushed = _obstacle_placed(cid, True, [-1.0, 2.0])
+    assert pushed[0][0] > 2.0, pushed
+
+
+def test_a_step_after_restorestate_or_a_reset_body_is_pybullets(cid):
+    """A plank thrown end first at a box floor turns on its landing, and BoxCCD takes the
+    steps after it in pieces while it does; after restoreState to a calm world, or the
+    plank put back at rest by the user, the next steps are plain pybullet's, bit for bit."""
+    raw = p._bullet_boxccd_originals["stepSimulation"]
+
+    def calm_world():
+        reset(cid, -10.0)
+        box(cid, [5, 5, 0.01], [0, 0, -0.01], mass=0.0)
+        plank = p.createMultiBody(1, p.createCollisionShape(p.GEOM_BOX, halfExtents=[0.4, 0.025, 0.025],
+                                                            physicsClientId=cid),
+                                  basePosition=[0, 0, 0.025], physicsClientId=cid)
+        for _ in range(30):
+            raw(physicsClientId=cid)
+        return plank, p.saveState(physicsClientId=cid)
+
+    def state(plank):
+        return p.getBasePositionAndOrientation(plank, physicsClientId=cid) + \
+            p.getBaseVelocity(plank, physicsClientId=cid)
+
+    def land(ccd, plank):
+        p.resetBasePositionAndOrientation(plank, [0, 0, 1.0], p.getQuaternionFromEuler([0, 0.9, 0]),
+                                          physicsClientId=cid)
+        p.resetBaseVelocity(plank, [0, 0, -14], [0, 20, 0], physicsClientId=cid)
+        while not ccd.stats.rewinds:
+            ccd.step()
+
+    for back in ("restoreState", "reset"):
+        plank, calm = calm_world()
+        ccd = BoxCCD(cid)
+        land(ccd, plank)
+        if back == "restoreState":
+            p.restoreState(calm, physicsClientId=cid)
+        else:
+            p.resetBasePositionAndOrientation(plank, [0, 0, 0.0249875], [0, 0, 0, 1], physicsClientId=cid)
+            p.resetBaseVelocity(plank, [0, 0, 0], [0, 0, 0], physicsClientId=cid)
+        start, pieces = p.saveState(physicsClientId=cid), ccd.stats.pieces
+        mine, plain = [], []
+        for _ in range(3):
+            ccd.step()
+            mine.append(state(plank))
+        p.restoreState(start, physicsClientId=cid)
+        for _ in range(3):
+            raw(physicsClientId=cid)
+            plain.append(state(plank))
+        assert ccd.stats.pieces == pieces and mine == plain, back
+
+
 def _teleported_paddle(cid, use, fine=1, velocity=False, maximal=False):
     """A mass-0 paddle (0.1 x 0.6 x 0.6 m) teleported along +x at 20 m/s for 0.04 s into two
     free 0.1 m cubes 0.2 m apart (restitution 0.5 on all, no gravity): at every step of

@@ -586,7 +586,8 @@ def test_a_maximal_body_with_links_names_the_boxes_it_leaves_out(cid):
     """createMultiBody(..., link*, useMaximalCoordinates=True), as snake.py does: pybullet
     reports 0 joints and poses none of the links (getLinkState gives None, getAABB fails,
     contacts and ray hits name body -1): the base is tracked, the links' boxes are named
-    in one warning and in summary()."""
+    in one warning and in summary(), and not again when the world changes later (a body
+    made beside it)."""
     reset(cid)
     b = snake(cid)
     assert p.getNumJoints(b, physicsClientId=cid) == 0
@@ -597,9 +598,12 @@ def test_a_maximal_body_with_links_names_the_boxes_it_leaves_out(cid):
         warnings.simplefilter("always")
         ccd = BoxCCD(cid)
         ccd.step()
+        p.createMultiBody(1, p.createCollisionShape(p.GEOM_BOX, halfExtents=[0.05] * 3, physicsClientId=cid),
+                          basePosition=[3, 0, 1], physicsClientId=cid)
+        ccd.step()
     mine = [str(w.message) for w in caught if issubclass(w.category, BoxCCDWarning)]
     assert len(mine) == 1 and f"body {b}: 3 boxes on links 0 (1), 1 (1), 2 (1)" in mine[0], mine
-    assert ccd.stats.tracked_boxes == 1
+    assert ccd.stats.tracked_boxes == 2  # the snake's base and the cube
     assert f"not tracked: body {b}: 3 boxes" in ccd.summary()
 
 

@@ -31,6 +31,7 @@ afterwards the path is exact, not predicted.
 
 from __future__ import annotations
 
+import itertools
 import math
 import numbers
 import time
@@ -170,6 +171,7 @@ class BoxCCD:
         self._reset_seen = self.world.journal.reset
         self._alone = False  # pybullet steps the world alone (see _unswept_step)
         self._moves_seen = self.world.journal.last_move  # moves made while building the world are not sweeps
+        self._teleported = {}  # body -> the latest step before which the user moved its fixed base
         self._stepped_seen = self.world.journal.stepped  # (direct steps before BoxCCD was made are no concern)
         self._quiet, self._epoch = False, -1  # whether a step may skip every check (see step)
         self._known = False  # whether the frame-state rows hold the velocities the next step starts from
@@ -195,6 +197,7 @@ class BoxCCD:
         j = self.world.journal
         if j.reset > self._reset_seen:  # resetSimulation: a new world, of which nothing was said yet
             self._warned.clear()
+            self._teleported = {}
             self._reset_seen = j.reset
             self._alone = False
         if j.stepped > self._stepped_seen:
@@ -211,9 +214,10 @@ class BoxCCD:
                                              "collisionFilterMode 1), and sets the ERPs back to those after its "
                                              "partial steps. Import "
                                              "bullet_boxccd before connecting, or set them again after importing it")
+        if j.last_body > self._renewed_seen:
+            self._forget_renewed(j)  # (before the bodies made anew are read, and named)
         if self.world.sync():
             self.stats.rediscoveries += 1
-            self._forget_renewed(j)
             t = self.world.tables
             self._sweep_reach = np.minimum(self.sweep_threshold * 2.0 * t.half.min(axis=1), self.sweep_distance)
             self._chains = Articulated(self.cid, t, self.world.self_collision(), self._sweep_reach, self._warn,
@@ -268,19 +272,22 @@ class BoxCCD:
         self._state.read_twists(frames)
 
     def _user_moves(self):
-        """Static frames the user moved since the last step, those given a velocity, and
-        every frame the user teleported."""
+        """Static frames the user moved since the last step, those given a velocity, every
+        frame the user teleported, and of the static frames moved, those the user placed:
+        moved after a step in which their body was not (a body teleported at every step
+        is driven, its move swept; one put somewhere else once, as an episode's reset puts
+        an obstacle, is placed there as pybullet places it)."""
         j, t = self.world.journal, self.world.tables
         seen = self._moves_seen
         if j.last_move <= seen:
-            return [], [], set()
+            return [], [], set(), []
         self._moves_seen = j.last_move
         jumps = joints_set_since(self.cid, seen)
         if jumps and j.restored <= seen and j.reset <= seen:
             self._name_joint_jumps(jumps, seen)
         if j.restored > seen:  # restoreState: every body jumped; no kinematic move is known
             self._state.read_poses(np.flatnonzero(t.kind == STATIC).tolist())
-            return [], [], set(range(len(t.keys)))
+            return [], [], set(range(len(t.keys))), []
         if j.stepped > seen:  # pybullet stepped the world directly: Bullet moved the frames with a velocity
             self._state.read_poses(sorted(self._state.with_velocity))
         moved = [f for b, s in j.moved.items() if s > seen for f in t.frames_of.get(b, ())]
@@ -289,7 +296,10 @@ class BoxCCD:
         self._state.name_not_finite([f for f in moved if f in free])
         # (a joint reset moves a body's links, not its fixed base)
         bases = [f for b, s in j.base_moved.items() if s > seen for f in t.frames_of.get(b, ()) if t.kind[f] == STATIC]
-        return bases, [f for f in given if t.kind[f] == STATIC], set(moved)
+        step, last = self.stats.steps, self._teleported
+        placed = [f for f in bases if last.get(t.keys[f][0]) != step - 1]
+        last.update((t.keys[f][0], step) for f in bases)
+        return bases, [f for f in given if t.kind[f] == STATIC], set(moved), placed
 
     def _name_joint_jumps(self, jumps, seen):
         """Name once each articulated body whose joints the user set between steps
@@ -348,8 +358,8 @@ class BoxCCD:
         """Forget what was said of the bodies removed or made since the last look: a new body
         under a removed one's id is named afresh."""
         renewed = {b for b, serial in j.renewed.items() if serial > self._renewed_seen}
+        self._renewed_seen = j.last_body
         if renewed:
-            self._renewed_seen = max(j.renewed.values())
             self._warned -= {k for k in self._warned if len(k) > 1 and type(k[1]) is int and k[1] in renewed}
 
     def _step_once(self) -> list:
@@ -447,6 +457,7 @@ class BoxCCD:
         the step's partial steps (``_spent``: what is left of them is the budget of its
         contacts). A body that turns by less is let go."""
         n = self._substeps
+        self._forget_turning_set()
         if not self._turning:
             return n
         keys, pieces = self.world.tables.keys, 1
@@ -460,6 +471,20 @@ class BoxCCD:
         self._spent = n * (pieces - 1)
         self.stats.pieces += self._spent
         return n * pieces
+
+    def _forget_turning_set(self):
+        """Drop from ``_turning`` the frames whose state the user set since the last step (all of
+        them after restoreState): their spin is the user's, not an impact's."""
+        j, seen = self.world.journal, self._moves_seen
+        if not self._turning or j.last_move <= seen:
+            return
+        if j.restored > seen:
+            self._turning.clear()
+            return
+        frames_of = self.world.tables.frames_of
+        for b, serial in itertools.chain(j.moved.items(), j.velocity_set.items()):
+            if serial > seen:
+                self._turning.difference_update(frames_of.get(b, ()))
 
     def _substepped(self, struck, step, n):
         """The user's step taken as n stepSimulations (its numSubSteps, or more:
@@ -537,7 +562,7 @@ class BoxCCD:
         the velocities are read, ``fast`` are the fast boxes (``Sweeper.fast``; None:
         none) and ``sw`` their sweep, if it was taken already."""
         self._velocities_set()
-        moved_static, with_velocity, user_moved = self._user_moves()
+        moved_static, with_velocity, user_moved, placed = self._user_moves()
         t_start, elapsed, piece, events = time.perf_counter(), 0.0, h, []
         self._acted, self._struck, self._presses = set(), struck, {}
         self._pressed_again, hold, impacts = False, h, []
@@ -545,7 +570,7 @@ class BoxCCD:
             k = 0
             while True:
                 if sw is None:  # (a sweep taken already began the step's state)
-                    self._state.begin_kinematic(moved_static, with_velocity)
+                    self._state.begin_kinematic(moved_static, with_velocity, placed)
                 if not stepped:
                     self._state.begin(self._known)
                     self._simulate(impacts)
@@ -570,7 +595,7 @@ class BoxCCD:
                 # the turn limit and ``hold``. After max_partial_steps of them no contact takes the
                 # world back again, and the rest goes to the step's end in one piece (after the
                 # last piece an impact began, taken again shorter if it spun a body past the limit).
-                moved_static, user_moved = [], set()
+                moved_static, user_moved, placed = [], set(), []
                 # A link pair pressing in again after the world went back to it (a robot's landing
                 # pybullet's solver cannot hold within a coarse step, an arm driving a box along
                 # its face), or a free body and a link, was not held over this piece:
