@@ -10,10 +10,11 @@ damping. Only the three bodies' contacts act on them, so their momentum along x 
 along x, for plain pybullet, BoxCCD, and pybullet at steps 64 and 256 times finer (the
 converged engine).
 
-It is the README's known limit on cascades within a step: when the world goes back
-within a partial step, the bodies of the contact it began with keep their whole change
-of velocity and a body pressing on them only its share up to that time, and a light
-body pressed between two heavy ones makes that gain the largest.
+A light body pressed between two heavy ones is where a partial step's impulses are most
+tightly coupled: the plate's impact with the first cube and its push on the second are
+one solve, and the world going back within it must keep that solve's impulses alike on
+every body it pushed (``contacts._Solve``), or the three leave with momentum no force
+gave them.
 
 Run
 ---

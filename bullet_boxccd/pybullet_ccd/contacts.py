@@ -49,7 +49,10 @@ state at the end of the step decides:
   solve again; but whole (after the step, less the rest's gravity) for a pair that the
   step began at an impact of, and for a pair pressing in while touching whose solve
   pybullet's velocity clamp cut: the clamp cuts the next solve from the same velocities,
-  and only kept do successive solves take its approach, as a fine step's do.
+  and only kept do successive solves take its approach, as a fine step's do. A body
+  stopped against another free body keeps its whole too, and so does every free body the
+  solve pushed on through one kept whole (``_Solve``): an impulse acts on both bodies
+  alike.
 
 Kinematic bodies (a fixed base the user teleports) cannot be taken back: a free body a
 teleport swept into is carried with it from the touch and leaves with the velocity of
