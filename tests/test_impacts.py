@@ -372,10 +372,10 @@ def test_a_body_struck_on_through_a_row_keeps_the_momentum_of_the_converged_engi
     """The bodies of a partial step's impact keep its impulse whole where the world goes
     back within that step, and so do the bodies pybullet's solver pushed on through them
     (the cube pressing on a struck 2 mm plate, 0.5 mm from it, no restitution; the row of
-    cubes 2 mm apart behind a struck cube, restitution 0.5): an impulse kept in share for one of a pair and whole for the
-    other made momentum no force gave (the sandwich left with 1.75 times it, the row with
-    1.1). Momentum and kinetic energy within 0.02 and 0.05 of pybullet at a 64 times
-    finer step."""
+    cubes 2 mm apart behind a struck cube, restitution 0.5): an impulse kept in share for
+    one of a pair and whole for the other made momentum no force gave (the sandwich left
+    with 1.75 times it, the row with 1.1). Momentum and kinetic energy within 0.02 and
+    0.05 of pybullet at a 64 times finer step."""
     for speed in (25.8, 50.0):
         mine = pressed_row(cid, True, speed, bodies, gravity, restitution)
         ref = pressed_row(cid, False, speed, bodies, gravity, restitution, fine=64)
