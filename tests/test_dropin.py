@@ -1673,13 +1673,15 @@ def test_a_disconnected_client_is_a_typed_error_and_a_reconnected_one_is_named()
     ccd = BoxCCD(cid)
     ccd.step()
     p.disconnect(cid)
-    with pytest.raises(ClientDisconnectedError, match=f"physics client {cid} was disconnected"):
-        ccd.step()
+    for call in (ccd.step, ccd.refresh):
+        with pytest.raises(ClientDisconnectedError, match=f"physics client {cid} was disconnected"):
+            call()
     again = p.connect(p.DIRECT)  # pybullet reuses the freed id: another, empty world
     try:
         assert again == cid
-        with pytest.raises(ClientDisconnectedError, match="a new world connected under its id"):
-            ccd.step()
+        for call in (ccd.step, ccd.refresh):
+            with pytest.raises(ClientDisconnectedError, match="a new world connected under its id"):
+                call()
     finally:
         p.disconnect(again)
 

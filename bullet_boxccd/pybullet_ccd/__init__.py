@@ -189,7 +189,9 @@ class BoxCCD:
 
     # ------------------------------------------------------------ the world
     def refresh(self) -> None:
-        """Read the whole world again (``step`` does what is needed by itself)."""
+        """Read the whole world again (``step`` does what is needed by itself). Raises
+        ``ClientDisconnectedError`` if the client was disconnected."""
+        self._check_connected()
         self.world.tables = None
         self._sync()
 
