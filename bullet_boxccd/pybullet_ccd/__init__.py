@@ -171,7 +171,6 @@ class BoxCCD:
         self._reset_seen = self.world.journal.reset
         self._alone = False  # pybullet steps the world alone (see _unswept_step)
         self._moves_seen = self.world.journal.last_move  # moves made while building the world are not sweeps
-        self._teleported = {}  # body -> the latest step before which the user moved its fixed base
         self._stepped_seen = self.world.journal.stepped  # (direct steps before BoxCCD was made are no concern)
         self._quiet, self._epoch = False, -1  # whether a step may skip every check (see step)
         self._known = False  # whether the frame-state rows hold the velocities the next step starts from
@@ -199,7 +198,6 @@ class BoxCCD:
         j = self.world.journal
         if j.reset > self._reset_seen:  # resetSimulation: a new world, of which nothing was said yet
             self._warned.clear()
-            self._teleported = {}
             self._reset_seen = j.reset
             self._alone = False
         if j.stepped > self._stepped_seen:
@@ -274,22 +272,19 @@ class BoxCCD:
         self._state.read_twists(frames)
 
     def _user_moves(self):
-        """Static frames the user moved since the last step, those given a velocity, every
-        frame the user teleported, and of the static frames moved, those the user placed:
-        moved after a step in which their body was not (a body teleported at every step
-        is driven, its move swept; one put somewhere else once, as an episode's reset puts
-        an obstacle, is placed there as pybullet places it)."""
+        """Static frames the user moved since the last step, those given a velocity, and
+        every frame the user teleported."""
         j, t = self.world.journal, self.world.tables
         seen = self._moves_seen
         if j.last_move <= seen:
-            return [], [], set(), []
+            return [], [], set()
         self._moves_seen = j.last_move
         jumps = joints_set_since(self.cid, seen)
         if jumps and j.restored <= seen and j.reset <= seen:
             self._name_joint_jumps(jumps, seen)
         if j.restored > seen:  # restoreState: every body jumped; no kinematic move is known
             self._state.read_poses(np.flatnonzero(t.kind == STATIC).tolist())
-            return [], [], set(range(len(t.keys))), []
+            return [], [], set(range(len(t.keys)))
         if j.stepped > seen:  # pybullet stepped the world directly: Bullet moved the frames with a velocity
             self._state.read_poses(sorted(self._state.with_velocity))
         moved = [f for b, s in j.moved.items() if s > seen for f in t.frames_of.get(b, ())]
@@ -298,10 +293,7 @@ class BoxCCD:
         self._state.name_not_finite([f for f in moved if f in free])
         # (a joint reset moves a body's links, not its fixed base)
         bases = [f for b, s in j.base_moved.items() if s > seen for f in t.frames_of.get(b, ()) if t.kind[f] == STATIC]
-        step, last = self.stats.steps, self._teleported
-        placed = [f for f in bases if last.get(t.keys[f][0]) != step - 1]
-        last.update((t.keys[f][0], step) for f in bases)
-        return bases, [f for f in given if t.kind[f] == STATIC], set(moved), placed
+        return bases, [f for f in given if t.kind[f] == STATIC], set(moved)
 
     def _name_joint_jumps(self, jumps, seen):
         """Name once each articulated body whose joints the user set between steps
@@ -564,7 +556,7 @@ class BoxCCD:
         the velocities are read, ``fast`` are the fast boxes (``Sweeper.fast``; None:
         none) and ``sw`` their sweep, if it was taken already."""
         self._velocities_set()
-        moved_static, with_velocity, user_moved, placed = self._user_moves()
+        moved_static, with_velocity, user_moved = self._user_moves()
         t_start, elapsed, piece, events = time.perf_counter(), 0.0, h, []
         self._acted, self._struck, self._presses = set(), struck, {}
         self._pressed_again, hold, impacts = False, h, []
@@ -572,7 +564,7 @@ class BoxCCD:
             k = 0
             while True:
                 if sw is None:  # (a sweep taken already began the step's state)
-                    self._state.begin_kinematic(moved_static, with_velocity, placed)
+                    self._state.begin_kinematic(moved_static, with_velocity)
                 if not stepped:
                     self._state.begin(self._known)
                     self._simulate(impacts)
@@ -597,7 +589,7 @@ class BoxCCD:
                 # the turn limit and ``hold``. After max_partial_steps of them no contact takes the
                 # world back again, and the rest goes to the step's end in one piece (after the
                 # last piece an impact began, taken again shorter if it spun a body past the limit).
-                moved_static, user_moved, placed = [], set(), []
+                moved_static, user_moved = [], set()
                 # A link pair pressing in again after the world went back to it (a robot's landing
                 # pybullet's solver cannot hold within a coarse step, an arm driving a box along
                 # its face), or a free body and a link, was not held over this piece:
@@ -784,7 +776,7 @@ class BoxCCD:
             # are half as long (``_step``).
             tau_links, links_acted = self._chains.act_at(found)
             events, tau = self.contacts.resolve(sw, jw, t, st, h, user_moved, self._gravity, True, tau_links,
-                                                self._struck, self._presses)
+                                                self._struck, self._presses, jump_time=self._dt)
             if tau < 1.0:
                 self._chains.stop_all(tau, st, self._struck)
                 self._others.back(h, tau, self._gravity)
@@ -812,7 +804,7 @@ class BoxCCD:
             events = self._chains.events(found)
             _, pushed = self._chains.stop_each(found, st, h, self.stats)
             more, tau = self.contacts.resolve(_without(sw, pushed, t), jw, t, st, h, user_moved, self._gravity,
-                                              False, struck=self._struck)
+                                              False, struck=self._struck, jump_time=self._dt)
             self._struck_next = self.contacts.struck | self._links_met
             events += more
         self.stats.seconds["rewind"] += time.perf_counter() - t3

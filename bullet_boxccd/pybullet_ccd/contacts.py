@@ -82,7 +82,7 @@ from .events import CCDEvent
 from .layout import ANGULAR_VELOCITY, PATH_ROW, POSE, VELOCITY
 from .shapes import PLANE_HALF
 from .sweep import CREEP, ride_near
-from .world import FREE, LINK, MAXIMAL_TYPE, restitution
+from .world import FREE, LINK, MAXIMAL_TYPE, restitution, velocity_clamp
 
 __all__ = ["Contacts", "place", "bounce"]
 
@@ -305,7 +305,8 @@ class Contacts:
         self.clamped = clamped
         self.met = set()
 
-    def resolve(self, sw, jw, tables, state, dt, user_moved, gravity, back=True, horizon=1.0, struck=(), presses=None):
+    def resolve(self, sw, jw, tables, state, dt, user_moved, gravity, back=True, horizon=1.0, struck=(), presses=None,
+                jump_time=None):
         """Events of the step's sweep ``sw`` and of the kinematic jumps' sweep ``jw`` (either
         may be None), with what they need applied to pybullet. Returns (events, tau): with
         ``back``, tau is the earliest time the world is taken back to (1 if none; at most
@@ -326,7 +327,8 @@ class Contacts:
         self.link_pressed_again = False
         self.met = set()
         self._presses = {} if presses is None else presses
-        pushed = self._jumps(jw, tables, state, dt, kinematic, user_moved, events) if jw is not None else {}
+        pushed = self._jumps(jw, tables, state, dt, dt if jump_time is None else jump_time, kinematic, user_moved,
+                             events) if jw is not None else {}
         solve = _Solve(self.cid, tables)
         paths = _Paths(sw, tables, state, dt, kinematic, struck, gravity, solve) \
             if sw is not None and sw.hits else None
@@ -749,14 +751,17 @@ class Contacts:
                                acted, info["initial"]))
 
     # -------------------------------------------------------------- jumps
-    def _jumps(self, jw, tables, state, dt, kinematic, user_moved, events):
-        """Free bodies a kinematic jump (the user's teleport before the step) swept into,
-        carried with it from the touch to where it stood when the step began: their path
-        through the step (Bullet's, in a world where the kinematic body was already there)
-        is replaced by a ride on it, and what a riding body meets in turn rides from that
-        touch on, in time order (a paddle teleported into a row of cubes pushes the row).
-        Returns {frame: (kinematic frame, centre-of-mass pose (4, 4) at the step's start,
-        velocity)}."""
+    def _jumps(self, jw, tables, state, dt, jump_time, kinematic, user_moved, events):
+        """Free bodies a kinematic jump (the user's teleport before the step of dt, a move over
+        ``jump_time``: the user's step) swept into, carried with it from the touch to where it
+        stood when the step began: their path through the step (Bullet's, in a world where
+        the kinematic body was already there) is replaced by a ride on it, and what a riding
+        body meets in turn rides from that touch on, in time order (a paddle teleported into
+        a row of cubes pushes the row). A body that would leave faster than pybullet's
+        velocity clamp lets it is not carried: pybullet at a fine step cannot push it so
+        fast, and the kinematic body passes it (an obstacle a reset puts elsewhere, moved 4
+        m in a step, through a resting cube). Returns {frame: (kinematic frame, centre-of-mass
+        pose (4, 4) at the step's start, velocity)}."""
         pushed = {}
         order = itertools.count()
         # (touch, order, pair of path rows (pusher's first), pusher frame, met frame, driver, contact)
@@ -773,15 +778,18 @@ class Contacts:
             if c is None:
                 continue
             act = tables.kind[d] == FREE and d not in kinematic and d not in user_moved
-            events.append(CCDEvent(*tables.keys[pusher], *tables.keys[d], 0.0, 0.0, c.point, c.normal, c.feature,
-                                   bool(act), False))
             if act:
                 start = pose_matrix(*np.split(_core.frame_poses(state.rows, dt, np.array([d], dtype=np.int64),
                                                                 np.zeros(1))[0], [3]))
                 X = _carry(pair[0], tau, start)
                 normal = _moved_with(pair[0], tau, c.normal)
-                v = self._push_velocity(tables, state, dt, d, k, X[:3, 3], normal, state.rows[d, VELOCITY], pusher,
-                                        jump=True)
+                v = self._push_velocity(tables, state, jump_time, d, k, X[:3, 3], normal, state.rows[d, VELOCITY],
+                                        pusher, jump=True)
+                clamp = velocity_clamp(self.cid, tables.keys[d][0])
+                act = clamp is None or float(np.abs(v).max()) <= clamp
+            events.append(CCDEvent(*tables.keys[pusher], *tables.keys[d], 0.0, 0.0, c.point, c.normal, c.feature,
+                                   bool(act), False))
+            if act:
                 pushed[d] = (k, X, v)
                 for t, rows, met, contact in self._ride_touches(tables, state, dt, pair[0], tau, d, start,
                                                                 kinematic | set(pushed)):

@@ -146,13 +146,11 @@ class FrameState:
         fresh, static, moved = self.fresh, self._static, self.with_velocity
         return [f for f in frames if f not in fresh and (f not in static or f in moved)]
 
-    def begin_kinematic(self, moved_static, with_velocity, placed=()):
+    def begin_kinematic(self, moved_static, with_velocity):
         """Before the step: note the static frames the user moved since the last step and
         those given a velocity (but those whose velocity pybullet ignores: ``_readers``; their
-        poses before the step are the ones known now, but for those of ``moved_static``
-        ``placed`` where they are: they made no move)."""
+        poses before the step are the ones known now)."""
         self.fresh = set()
-        self._read_static(placed)
         with_velocity = [f for f in with_velocity if f not in self._at_rest]
         if not (moved_static or with_velocity or self.with_velocity):
             self.pose0, self.kinematic = {}, []

@@ -39,7 +39,7 @@ import pybullet
 
 from ..motion import pose_matrix
 from . import mjcf
-from ._hooks import damping, journal, new_serial, raw
+from ._hooks import MAX_VELOCITY, damping, journal, new_serial, raw
 from .events import BoxCCDWarning
 from .filters import Filters, default_group_mask
 from .shapes import SHADOW, SPHERE, multibody_boxes, plane_box, probe_boxes
@@ -62,6 +62,15 @@ def restitution(cid, key, info):
     changeDynamics, else the one it was made with), unknown for one made before this package
     was imported and not given one since."""
     return journal(cid).restitution.get(key) if info[10] == MAXIMAL_TYPE else info[5]
+
+
+def velocity_clamp(cid, body):
+    """The speed pybullet cuts each component of a free body's velocity and spin to (its
+    maxJointVelocity, given or pybullet's 100), or None in maximal coordinates (pybullet
+    cuts a rigid body's at none)."""
+    if raw.getDynamicsInfo(body, -1, physicsClientId=cid)[10] == MAXIMAL_TYPE:
+        return None
+    return journal(cid).max_velocity.get(body, MAX_VELOCITY)
 
 
 @dataclass
