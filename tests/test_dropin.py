@@ -414,7 +414,8 @@ def test_a_fixed_body_teleported_faster_than_a_box_can_be_pushed_passes_it(cid):
     teleporting it in 128 increments a step does (plain pybullet leaves it behind); the
     cube ends within 1 cm of where that reference has it (with substeps, within the
     obstacle's move in a step: it rides the whole move in the step's first substep and
-    runs on at its speed in the others)."""
+    runs on at its speed in the others); driven at the cube's clamp itself, it pushes the
+    cube at it."""
     for moves in ([None, 2.0], [None, 2.0, None, -2.0, None, 2.0]):
         assert _obstacle_moved(cid, True, moves) == _obstacle_moved(cid, False, moves)
     drive = [-0.045 + 6.0 * DT * (k + 1) for k in range(12)]
@@ -423,6 +424,10 @@ def test_a_fixed_body_teleported_faster_than_a_box_can_be_pushed_passes_it(cid):
         assert abs(mine[0][0] - ref[0][0]) < near and abs(mine[2][0] - ref[2][0]) < 0.1, (substeps, mine, ref)
     plain = _obstacle_moved(cid, False, drive)
     assert plain[0][0] < drive[-1], "plain pybullet pushed the cube: the test shows nothing"
+    # At the cube's clamp itself (100 m/s, to rounding) the cube is still pushed at it.
+    drive = [-0.045 + 100.0 * DT * (k + 1) for k in range(6)]
+    mine, ref = (_obstacle_moved(cid, use, drive, fine) for use, fine in ((True, 1), (False, 128)))
+    assert mine[0][0] > drive[-1] and abs(mine[2][0] - ref[2][0]) < 1.0, (mine, ref)
 
 
 def test_a_step_after_restorestate_or_a_reset_body_is_pybullets(cid):

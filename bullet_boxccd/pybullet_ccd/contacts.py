@@ -757,11 +757,12 @@ class Contacts:
         stood when the step began: their path through the step (Bullet's, in a world where
         the kinematic body was already there) is replaced by a ride on it, and what a riding
         body meets in turn rides from that touch on, in time order (a paddle teleported into
-        a row of cubes pushes the row). A body that would leave faster than pybullet's
-        velocity clamp lets it is not carried: pybullet at a fine step cannot push it so
-        fast, and the kinematic body passes it (an obstacle a reset puts elsewhere, moved 4
-        m in a step, through a resting cube). Returns {frame: (kinematic frame, centre-of-mass
-        pose (4, 4) at the step's start, velocity)}."""
+        a row of cubes pushes the row). A body leaves with its velocity cut to pybullet's
+        velocity clamp, as pybullet cuts it at every step, and one the clamp keeps slower
+        along the contact's normal than the kinematic body is not carried: pybullet at a fine
+        step cannot push it so fast, and the kinematic body passes it (an obstacle a reset
+        puts elsewhere, moved 4 m in a step, through a resting cube). Returns {frame:
+        (kinematic frame, centre-of-mass pose (4, 4) at the step's start, velocity)}."""
         pushed = {}
         order = itertools.count()
         # (touch, order, pair of path rows (pusher's first), pusher frame, met frame, driver, contact)
@@ -786,7 +787,10 @@ class Contacts:
                 v = self._push_velocity(tables, state, jump_time, d, k, X[:3, 3], normal, state.rows[d, VELOCITY],
                                         pusher, jump=True)
                 clamp = velocity_clamp(self.cid, tables.keys[d][0])
-                act = clamp is None or float(np.abs(v).max()) <= clamp
+                if clamp is not None:  # pybullet cuts each component to the clamp: can it keep ahead?
+                    v = np.clip(v, -clamp, clamp)
+                    ahead = float(self._kinematic_velocity(*state.jumps[k], jump_time, X[:3, 3]) @ normal)
+                    act = float(v @ normal) >= ahead - 1e-9 * max(abs(ahead), 1.0)
             events.append(CCDEvent(*tables.keys[pusher], *tables.keys[d], 0.0, 0.0, c.point, c.normal, c.feature,
                                    bool(act), False))
             if act:
