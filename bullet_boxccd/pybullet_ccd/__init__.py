@@ -166,7 +166,8 @@ class BoxCCD:
         bodies = _bodies(self.cid, self_collision_bodies, "self_collision_bodies")
         self.world = World(self.cid, bodies, self._warn)
         self.contacts = Contacts(self.cid, self.penetration, self.impact_depth, self.depth_tolerance,
-                                 self.fit_tolerance, self.tolerances, self.stats, self._clamped)
+                                 self.fit_tolerance, self.tolerances, self.stats, self._clamped,
+                                 self.world.velocity_clamp)
         self._params_seen = -1
         self._reset_seen = self.world.journal.reset
         self._alone = False  # pybullet steps the world alone (see _unswept_step)
@@ -469,8 +470,10 @@ class BoxCCD:
     def _forget_turning_set(self):
         """Drop from ``_turning`` the frames whose state the user set since the last step (all of
         them after restoreState): their spin is the user's, not an impact's."""
+        if not self._turning:
+            return
         j, seen = self.world.journal, self._moves_seen
-        if not self._turning or j.last_move <= seen:
+        if j.last_move <= seen:
             return
         if j.restored > seen:
             self._turning.clear()
@@ -907,8 +910,8 @@ class BoxCCD:
         out = set()
         for f in frames:
             b, link = w.tables.keys[f]
-            if link == -1 and not w.maximal(b):
-                clamp = w.journal.max_velocity.get(b, MAX_VELOCITY)
+            clamp = w.velocity_clamp(b) if link == -1 else None
+            if clamp is not None:
                 out.update(self._state.sweeper.at_speed([f], clamp, 1e-9))
         return out
 
@@ -926,9 +929,9 @@ class BoxCCD:
         self._clamp_candidates.clear()
         w, by_clamp = self.world, {}
         for f in frames:
-            b = w.tables.keys[f][0]
-            if not w.maximal(b):
-                by_clamp.setdefault(w.journal.max_velocity.get(b, MAX_VELOCITY), []).append(f)
+            clamp = w.velocity_clamp(w.tables.keys[f][0])
+            if clamp is not None:
+                by_clamp.setdefault(clamp, []).append(f)
         for clamp, group in by_clamp.items():
             for f in self._state.sweeper.at_speed(group, clamp, 1e-9):
                 self._name_clamp(w.tables.keys[f][0], clamp)
@@ -937,8 +940,7 @@ class BoxCCD:
         """Name body b at its velocity clamp ``clamp``, unless pybullet does not clamp it
         there: in maximal coordinates, or with its clamp changed to another
         (changeDynamics(maxJointVelocity=...))."""
-        w = self.world
-        if w.maximal(b) or w.journal.max_velocity.get(b, MAX_VELOCITY) != clamp:
+        if self.world.velocity_clamp(b) != clamp:
             return
         if clamp == MAX_VELOCITY:
             self._warn(("clamp", b), f"body {b} moves or turns at {MAX_VELOCITY:g} (m/s, rad/s) along a world axis, "

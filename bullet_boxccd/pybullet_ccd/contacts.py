@@ -82,7 +82,7 @@ from .events import CCDEvent
 from .layout import ANGULAR_VELOCITY, PATH_ROW, POSE, VELOCITY
 from .shapes import PLANE_HALF
 from .sweep import CREEP, ride_near
-from .world import FREE, LINK, MAXIMAL_TYPE, restitution, velocity_clamp
+from .world import FREE, LINK, MAXIMAL_TYPE, restitution
 
 __all__ = ["Contacts", "place", "bounce"]
 
@@ -296,13 +296,14 @@ class _Paths:
 class Contacts:
     """The step's contacts in time order (see the module docstring)."""
 
-    def __init__(self, cid, penetration, impact_depth, depth_tolerance, fit_tolerance, tolerances, stats, clamped):
+    def __init__(self, cid, penetration, impact_depth, depth_tolerance, fit_tolerance, tolerances, stats, clamped,
+                 velocity_clamp):
         """``clamped(frames)``: those of the frames whose velocity pybullet's velocity clamp cut
-        in the (partial) step just taken."""
+        in the (partial) step just taken; ``velocity_clamp(body)``: that clamp (``World``)."""
         self.cid, self.penetration, self.depth_tolerance = cid, penetration, depth_tolerance
         self.impact_depth = impact_depth
         self.fit_tolerance, self.tolerances, self.stats = fit_tolerance, tolerances, stats
-        self.clamped = clamped
+        self.clamped, self.velocity_clamp = clamped, velocity_clamp
         self.met = set()
 
     def resolve(self, sw, jw, tables, state, dt, user_moved, gravity, back=True, horizon=1.0, struck=(), presses=None,
@@ -786,7 +787,7 @@ class Contacts:
                 normal = _moved_with(pair[0], tau, c.normal)
                 v = self._push_velocity(tables, state, jump_time, d, k, X[:3, 3], normal, state.rows[d, VELOCITY],
                                         pusher, jump=True)
-                clamp = velocity_clamp(self.cid, tables.keys[d][0])
+                clamp = self.velocity_clamp(tables.keys[d][0])
                 if clamp is not None:  # pybullet cuts each component to the clamp: can it keep ahead?
                     v = np.clip(v, -clamp, clamp)
                     ahead = float(self._kinematic_velocity(*state.jumps[k], jump_time, X[:3, 3]) @ normal)

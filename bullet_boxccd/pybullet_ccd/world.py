@@ -64,15 +64,6 @@ def restitution(cid, key, info):
     return journal(cid).restitution.get(key) if info[10] == MAXIMAL_TYPE else info[5]
 
 
-def velocity_clamp(cid, body):
-    """The speed pybullet cuts each component of a free body's velocity and spin to (its
-    maxJointVelocity, given or pybullet's 100), or None in maximal coordinates (pybullet
-    cuts a rigid body's at none)."""
-    if raw.getDynamicsInfo(body, -1, physicsClientId=cid)[10] == MAXIMAL_TYPE:
-        return None
-    return journal(cid).max_velocity.get(body, MAX_VELOCITY)
-
-
 @dataclass
 class _Frame:
     link: int
@@ -484,6 +475,12 @@ class World:
         is its multibodies')."""
         rec = self._bodies.get(b)
         return rec is not None and rec.maximal
+
+    def velocity_clamp(self, b):
+        """The speed pybullet cuts each component of body b's base velocity and spin to (its
+        maxJointVelocity, given or pybullet's 100), or None in maximal coordinates (pybullet
+        cuts a rigid body's at none)."""
+        return None if self.maximal(b) else self.journal.max_velocity.get(b, MAX_VELOCITY)
 
     def damping(self, b) -> tuple:
         """(linear, angular) damping of body b as Bullet damps a free multibody base."""
